@@ -1,0 +1,19 @@
+"""tactile_force.edge: the robot-side runtime (numpy + onnxruntime + OpenCV, never torch).
+
+Data flow: frame source -> contact gate -> [depth stage for D/Dmod/RGBmod+D] -> ONNX
+inference -> ForceReading. See design.md for the contracts.
+"""
+
+from .bundle import DEPTH_VARIANTS, VARIANTS, Bundle, Manifest, TensorSpec, load_bundle, write_bundle
+from .dataset import AuthorsDataset, AuthorsDatasetWriter, Sample
+from .errors import (BundleError, DatasetError, FrameError, MissingExtraError, SceneError, SourceError,
+                     TactileForceError)
+from .frames import FRAME_SHAPE, TimedFrame, check_frame
+from .metrics import ErrorReport, ErrorStats, error_report, error_stats, relative_error
+from .reading import MAX_VALID_FORCE_N, MIN_VALID_FORCE_N, Flags, ForceReading, StageLatency
+
+# --- runtime (sources, gate, inference, scenes) ---
+# --- synthetic ---
+# --- depth ---
+
+__all__ = [name for name in dir() if not name.startswith("_")]

@@ -1,0 +1,180 @@
+"""Labelled data in the paper authors' layout.
+
+    root/images/N.png                  RGB tactile frame (BGR PNG as OpenCV writes it)
+    root/filt_img_depth/depth_img_N.png  filtered 8-bit depth image (optional)
+    root/forces/force_N.txt            first line = normal force in N
+    root/meta.jsonl                    optional, ours: one JSON object per sample with "id"
+
+Samples are paired by their number N, never by directory listing order.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Iterator
+
+import cv2
+import numpy as np
+
+from .errors import DatasetError
+
+_IMG_RE = re.compile(r"^(\d+)\.png$")
+
+
+@dataclass(slots=True)
+class Sample:
+    """One labelled sample: frame HxWx3 uint8 BGR, force in N, optional depth HxW uint8."""
+
+    id: int
+    frame: np.ndarray
+    force_n: float
+    depth: np.ndarray | None = None
+    meta: dict = field(default_factory=dict)
+
+
+def read_force_file(path: Path) -> float:
+    """First line of ``force_N.txt`` as newtons; DatasetError naming the file otherwise."""
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise DatasetError(f"{path}: force file missing (expected first line = normal force in N)") from None
+    first = text.strip().splitlines()[0].strip() if text.strip() else ""
+    try:
+        value = float(first.split()[0].rstrip(","))
+    except (ValueError, IndexError):
+        raise DatasetError(f"{path}: first line {first!r} is not a number (expected the normal force in N)") from None
+    if not np.isfinite(value):
+        raise DatasetError(f"{path}: force {value} is not finite")
+    return value
+
+
+def read_image(path: Path, flags: int = cv2.IMREAD_COLOR) -> np.ndarray:
+    """Read a PNG with OpenCV; DatasetError naming the file if missing or undecodable."""
+    if not path.is_file():
+        raise DatasetError(f"{path}: image missing")
+    img = cv2.imread(str(path), flags)
+    if img is None:
+        raise DatasetError(f"{path}: cannot decode image (empty, truncated or not an image)")
+    return img
+
+
+class AuthorsDataset:
+    """Read a dataset in the authors' layout; index i gives the i-th sample by id order.
+
+    ``require_depth`` makes a missing ``filt_img_depth/depth_img_N.png`` an error;
+    otherwise depth is loaded when present.
+    """
+
+    def __init__(self, root: str | os.PathLike, require_depth: bool = False) -> None:
+        self.root = Path(root)
+        img_dir = self.root / "images"
+        if not img_dir.is_dir():
+            raise DatasetError(f"{self.root}: no 'images/' folder; expected the layout images/N.png, forces/force_N.txt")
+        ids = sorted(int(m.group(1)) for p in img_dir.iterdir() if (m := _IMG_RE.match(p.name)))
+        if not ids:
+            raise DatasetError(f"{img_dir}: no images named N.png")
+        self.ids: list[int] = ids
+        self.require_depth = require_depth
+        self.meta: dict[int, dict] = {}
+        meta_path = self.root / "meta.jsonl"
+        if meta_path.is_file():
+            for line in meta_path.read_text().splitlines():
+                if line.strip():
+                    rec = json.loads(line)
+                    self.meta[int(rec["id"])] = rec
+
+    def __len__(self) -> int:
+        return len(self.ids)
+
+    def image_path(self, n: int) -> Path:
+        return self.root / "images" / f"{n}.png"
+
+    def depth_path(self, n: int) -> Path:
+        return self.root / "filt_img_depth" / f"depth_img_{n}.png"
+
+    def force_path(self, n: int) -> Path:
+        return self.root / "forces" / f"force_{n}.txt"
+
+    def force(self, n: int) -> float:
+        return read_force_file(self.force_path(n))
+
+    def forces(self) -> np.ndarray:
+        """All forces in N, in id order."""
+        return np.array([self.force(n) for n in self.ids], dtype=np.float64)
+
+    def load(self, n: int) -> Sample:
+        """Sample with id ``n``."""
+        frame = read_image(self.image_path(n))
+        dpath = self.depth_path(n)
+        depth = None
+        if dpath.is_file() or self.require_depth:
+            depth = read_image(dpath, cv2.IMREAD_GRAYSCALE)
+        return Sample(id=n, frame=frame, force_n=self.force(n), depth=depth, meta=self.meta.get(n, {}))
+
+    def __getitem__(self, i: int) -> Sample:
+        return self.load(self.ids[i])
+
+    def __iter__(self) -> Iterator[Sample]:
+        for n in self.ids:
+            yield self.load(n)
+
+
+class AuthorsDatasetWriter:
+    """Write samples in the authors' layout, each file atomically (temp + rename).
+
+    The force file is written last, so a crash leaves at most one sample without its
+    label, which readers of this layout report clearly; ``meta.jsonl`` is appended and
+    flushed per sample.
+    """
+
+    def __init__(self, root: str | os.PathLike, start_id: int = 0) -> None:
+        self.root = Path(root)
+        for sub in ("images", "forces"):
+            (self.root / sub).mkdir(parents=True, exist_ok=True)
+        self.next_id = start_id
+        self._meta = None
+
+    @staticmethod
+    def _atomic_write(path: Path, data: bytes) -> None:
+        tmp = path.with_name(f".{path.name}.tmp")
+        with open(tmp, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+
+    def write(self, frame: np.ndarray, force_n: float, depth: np.ndarray | None = None,
+              meta: dict | None = None, n: int | None = None) -> int:
+        """Write one sample; returns its id N."""
+        n = self.next_id if n is None else n
+        ok, png = cv2.imencode(".png", frame)
+        if not ok:
+            raise DatasetError(f"cannot encode frame {n} as PNG (shape {frame.shape}, dtype {frame.dtype})")
+        self._atomic_write(self.root / "images" / f"{n}.png", png.tobytes())
+        if depth is not None:
+            (self.root / "filt_img_depth").mkdir(exist_ok=True)
+            ok, dpng = cv2.imencode(".png", depth)
+            self._atomic_write(self.root / "filt_img_depth" / f"depth_img_{n}.png", dpng.tobytes())
+        if meta is not None:
+            if self._meta is None:
+                self._meta = open(self.root / "meta.jsonl", "a")
+            self._meta.write(json.dumps({"id": n, **meta}) + "\n")
+            self._meta.flush()
+        self._atomic_write(self.root / "forces" / f"force_{n}.txt", f"{force_n:.6f}\n".encode())
+        self.next_id = max(self.next_id, n + 1)
+        return n
+
+    def close(self) -> None:
+        if self._meta is not None:
+            self._meta.close()
+            self._meta = None
+
+    def __enter__(self) -> "AuthorsDatasetWriter":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()

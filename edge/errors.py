@@ -1,0 +1,53 @@
+"""Exception types shared by the whole package.
+
+Every error names the input it rejects and what was expected, so a message read in a
+robot's log is enough to fix the cause.
+"""
+
+from __future__ import annotations
+
+
+class TactileForceError(Exception):
+    """Base class of every error this package raises on purpose."""
+
+
+class FrameError(TactileForceError, ValueError):
+    """A frame has the wrong shape, dtype, colour order or content."""
+
+
+class BundleError(TactileForceError):
+    """A model bundle is missing, truncated, corrupted or does not match its manifest."""
+
+
+class DatasetError(TactileForceError):
+    """A labelled dataset on disk is missing files or holds unparsable ones."""
+
+
+class SourceError(TactileForceError):
+    """A frame source failed (device gone, file unreadable)."""
+
+
+class SceneError(TactileForceError, ValueError):
+    """A scene file is malformed or asks for something that cannot be built."""
+
+
+class MissingExtraError(TactileForceError, ImportError):
+    """An optional dependency is needed; the message names the extra to install."""
+
+    def __init__(self, module: str, extra: str, purpose: str) -> None:
+        super().__init__(
+            f"{purpose} needs the Python module '{module}', which is not installed. "
+            f"Install it with: pip install 'tactile-force[{extra}]'"
+        )
+        self.module = module
+        self.extra = extra
+
+
+def require(module: str, extra: str, purpose: str):
+    """Import an optional module or raise :class:`MissingExtraError` with one clear line."""
+    import importlib
+
+    try:
+        return importlib.import_module(module)
+    except ImportError as exc:  # pragma: no cover - depends on the environment
+        raise MissingExtraError(module, extra, purpose) from exc

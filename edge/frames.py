@@ -1,0 +1,82 @@
+"""The frame contract: uint8 H x W x 3 BGR, DIGIT portrait 320 rows x 240 columns.
+
+All sources yield frames in this convention with a monotonic timestamp in nanoseconds
+(:class:`TimedFrame`). :func:`check_frame` is the single validator used everywhere a frame
+enters the package.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import FrameError
+
+#: DIGIT frame size after orientation: rows, columns (portrait).
+FRAME_ROWS = 320
+FRAME_COLS = 240
+FRAME_SHAPE = (FRAME_ROWS, FRAME_COLS, 3)
+
+#: Mean intensity (0..255) under which a frame counts as all-dark, over which all-white.
+DARK_LEVEL = 8.0
+WHITE_LEVEL = 247.0
+
+
+@dataclass(slots=True)
+class TimedFrame:
+    """One frame from a source.
+
+    frame: HxWx3 uint8 BGR; timestamp_ns: monotonic clock, ns; index: running frame
+    number of the source; truth_n: ground-truth normal force in N when the source knows it
+    (replay of a labelled dataset, the virtual DIGIT), else None.
+    """
+
+    frame: np.ndarray
+    timestamp_ns: int
+    index: int
+    truth_n: float | None = None
+    meta: dict = field(default_factory=dict)
+
+
+def check_frame(
+    frame: object,
+    name: str = "frame",
+    shape: tuple[int, int, int] | None = FRAME_SHAPE,
+) -> np.ndarray:
+    """Validate a frame and return it as a C-contiguous uint8 array.
+
+    Raises :class:`FrameError` naming ``name`` on a non-array, wrong dtype, wrong shape,
+    or an empty array. ``shape=None`` accepts any H x W x 3.
+    """
+    if not isinstance(frame, np.ndarray):
+        raise FrameError(f"{name}: expected a numpy.ndarray (H x W x 3 uint8 BGR), got {type(frame).__name__}")
+    if frame.size == 0:
+        raise FrameError(f"{name}: empty array (shape {frame.shape}); expected H x W x 3 uint8 BGR")
+    if frame.dtype != np.uint8:
+        extra = ""
+        if np.issubdtype(frame.dtype, np.floating) and not np.all(np.isfinite(frame)):
+            extra = " (and it contains NaN or inf)"
+        raise FrameError(
+            f"{name}: dtype {frame.dtype}{extra}; expected uint8 BGR 0..255 "
+            "(convert with np.clip(x, 0, 255).astype(np.uint8) only if the values are 0..255)"
+        )
+    if frame.ndim != 3 or frame.shape[2] != 3:
+        raise FrameError(f"{name}: shape {frame.shape}; expected H x W x 3 (BGR)")
+    if shape is not None and frame.shape != shape:
+        hint = ""
+        if frame.shape[:2] == shape[:2][::-1]:
+            hint = " (looks like landscape: transpose/rotate to 320 rows x 240 cols as digit-interface does)"
+        raise FrameError(f"{name}: shape {frame.shape}; expected {shape}{hint}")
+    return np.ascontiguousarray(frame)
+
+
+def exposure_problem(frame: np.ndarray) -> str | None:
+    """Return 'all-dark' or 'all-white' when a frame carries no usable image, else None."""
+    # Subsample: a 1/16 grid is enough to judge global exposure and costs microseconds.
+    mean = float(frame[::4, ::4].mean())
+    if mean < DARK_LEVEL:
+        return "all-dark"
+    if mean > WHITE_LEVEL:
+        return "all-white"
+    return None

@@ -1,0 +1,77 @@
+"""ForceReading: what the runtime emits for every frame it processes."""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field
+
+#: The paper's valid force range in newtons: the gel barely deforms below, saturates above.
+MIN_VALID_FORCE_N = 1.0
+MAX_VALID_FORCE_N = 15.0
+
+
+class Flags(enum.IntFlag):
+    """Quality flags of a reading; combine with ``|``."""
+
+    NONE = 0
+    NO_CONTACT = enum.auto()  #: gate closed: force 0 N, the CNN did not run
+    BELOW_RANGE = enum.auto()  #: estimate < 1 N, where the gel barely deforms
+    SATURATED = enum.auto()  #: estimate >= 15 N or gel saturation seen in the frame
+    LATE = enum.auto()  #: the frame missed its deadline (still reported)
+    STALE = enum.auto()  #: a newer frame superseded this one before it was processed
+    INVALID_INPUT = enum.auto()  #: wrong shape/dtype, all-dark or all-white frame, NaN
+
+    def names(self) -> list[str]:
+        """Lower-case flag names, e.g. ['no_contact'], for CSV/JSON output."""
+        return [f.name.lower() for f in Flags if f and f in self and f.name]
+
+
+@dataclass(slots=True)
+class StageLatency:
+    """Per-stage wall time of one reading, milliseconds."""
+
+    source_ms: float = 0.0
+    gate_ms: float = 0.0
+    depth_ms: float = 0.0
+    inference_ms: float = 0.0
+    total_ms: float = 0.0
+
+
+@dataclass(slots=True)
+class ForceReading:
+    """One force estimate.
+
+    force_n: normal force in N, clamped to what the model can honestly say;
+    raw_force_n: the model's output before clamping (nan when the CNN did not run);
+    truth_n: ground truth when the source knows it.
+    """
+
+    sensor: str
+    timestamp_ns: int
+    frame_index: int
+    force_n: float
+    flags: Flags = Flags.NONE
+    latency: StageLatency = field(default_factory=StageLatency)
+    raw_force_n: float = float("nan")
+    contact_area_px: int = 0
+    truth_n: float | None = None
+    detail: str = ""
+
+    def as_dict(self) -> dict:
+        """Flat dict for CSV/JSONL writers."""
+        return {
+            "sensor": self.sensor,
+            "timestamp_ns": self.timestamp_ns,
+            "frame_index": self.frame_index,
+            "force_n": self.force_n,
+            "raw_force_n": self.raw_force_n,
+            "truth_n": self.truth_n,
+            "flags": "|".join(self.flags.names()),
+            "contact_area_px": self.contact_area_px,
+            "source_ms": self.latency.source_ms,
+            "gate_ms": self.latency.gate_ms,
+            "depth_ms": self.latency.depth_ms,
+            "inference_ms": self.latency.inference_ms,
+            "total_ms": self.latency.total_ms,
+            "detail": self.detail,
+        }

@@ -1,0 +1,1 @@
+"""tactile_force.export: trained checkpoints -> verified (quantized) ONNX bundles. Needs torch."""

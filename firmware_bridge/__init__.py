@@ -1,0 +1,1 @@
+"""tactile_force.firmware_bridge: USB sensors, HID reference scale, OAK accelerator (each imported lazily)."""

@@ -1,0 +1,25 @@
+"""Shared test helpers: where the real sensor data lives, and a skip when it is absent."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+SHARED_DATA = Path(os.environ.get("TACTILE_FORCE_SHARED_DATA", REPO.parent / "shared" / "data"))
+
+
+def shared_data(*parts: str) -> Path:
+    """Path under ../shared/data; skips the test with a clear reason when it is absent."""
+    p = SHARED_DATA.joinpath(*parts)
+    if not p.exists():
+        pytest.skip(f"real sensor data not found at {p} (set TACTILE_FORCE_SHARED_DATA to ../shared/data)")
+    return p
+
+
+@pytest.fixture
+def aurova_dir() -> Path:
+    """The 11 real DIGIT frames with forces (authors' layout)."""
+    return shared_data("aurova_digit_grasp")
