@@ -8,7 +8,7 @@ from .bundle import DEPTH_VARIANTS, VARIANTS, Bundle, Manifest, TensorSpec, load
 from .dataset import AuthorsDataset, AuthorsDatasetWriter, Sample
 from .errors import (BundleError, DatasetError, FrameError, MissingExtraError, SceneError, SourceError,
                      TactileForceError)
-from .frames import FRAME_SHAPE, TimedFrame, check_frame
+from .frames import FRAME_SHAPE, FrameSource, SourceStats, TimedFrame, check_frame
 from .metrics import ErrorReport, ErrorStats, error_report, error_stats, relative_error
 from .reading import MAX_VALID_FORCE_N, MIN_VALID_FORCE_N, Flags, ForceReading, StageLatency
 

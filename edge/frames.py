@@ -80,3 +80,44 @@ def exposure_problem(frame: np.ndarray) -> str | None:
     if mean > WHITE_LEVEL:
         return "all-white"
     return None
+
+
+@dataclass(slots=True)
+class SourceStats:
+    """Counters every source keeps: frames delivered, dropped (never arrived or
+    superseded) and corrupt (arrived but undecodable or wrong shape; never passed on)."""
+
+    frames: int = 0
+    dropped: int = 0
+    corrupt: int = 0
+
+
+class FrameSource:
+    """Interface of every frame source (camera, replay folder, video file, virtual DIGIT).
+
+    ``read()`` returns the next :class:`TimedFrame`, or None at the end of a finite
+    stream; it raises :class:`~tactile_force.edge.errors.SourceError` when the device or
+    file is gone. Corrupt frames are counted in ``stats.corrupt`` and skipped, never
+    returned. Sources are context managers and iterables of TimedFrame.
+    """
+
+    name: str = "source"
+
+    def __init__(self) -> None:
+        self.stats = SourceStats()
+
+    def read(self) -> TimedFrame | None:  # pragma: no cover - interface
+        raise NotImplementedError
+
+    def close(self) -> None:
+        """Release the device or file; safe to call twice."""
+
+    def __enter__(self) -> "FrameSource":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def __iter__(self):
+        while (item := self.read()) is not None:
+            yield item
