@@ -13,7 +13,17 @@ from .metrics import ErrorReport, ErrorStats, error_report, error_stats, relativ
 from .reading import MAX_VALID_FORCE_N, MIN_VALID_FORCE_N, Flags, ForceReading, StageLatency
 
 # --- runtime (sources, gate, inference, scenes) ---
+from .gate import ContactGate, GateOptions, GateResult
+from .inference import LadderChoice, OnnxForceModel, choose_bundle
+from .outputs import CsvWriter, JsonlWriter, StdoutWriter
+from .runtime import ForceRuntime, RuntimeOptions, RuntimeStats, Sensor, plan_stages
+from .scene import Scene, build_scene, default_bundle_path, describe_scene, load_scene
+from .sources import CameraSource, ReplayFolderSource, VideoFileSource, load_background
 # --- synthetic ---
+from .synthetic import (ContactSpec, DatasetOptions, DatasetSummary, IndenterSplit, SyntheticFrame, VirtualDigit,
+                        VirtualDigitOptions, VirtualDigitSource, generate_dataset, indenter_split, paper_split,
+                        split_ids)
 # --- depth ---
+from .depth import DepthOptions, DepthResult, DepthStage, MaxDeformationBaseline, NormalLUT
 
 __all__ = [name for name in dir() if not name.startswith("_")]

@@ -31,6 +31,13 @@ class SceneError(TactileForceError, ValueError):
     """A scene file is malformed or asks for something that cannot be built."""
 
 
+class AcceleratorUnavailableError(TactileForceError):
+    """An accelerator backend (OAK) cannot run here: no device, busy, unusable model.
+
+    A runtime that may fall back to the CPU backend catches this one type.
+    """
+
+
 class MissingExtraError(TactileForceError, ImportError):
     """An optional dependency is needed; the message names the extra to install."""
 

@@ -1,1 +1,27 @@
-"""tactile_force.export: trained checkpoints -> verified (quantized) ONNX bundles. Needs torch."""
+"""tactile_force.export: trained checkpoints -> verified (quantized) ONNX bundles. Needs torch.
+
+Options -> verb -> typed result:
+
+    bundle = export_bundle("ckpt.pth", "rgbmod_fp32", ExportOptions(variant="rgbmod",
+                           parity_data="dataset/"))
+    q = quantize_bundle(bundle, "rgbmod_int8", QuantizeOptions(mode="int8-static"),
+                        calibration="dataset/")
+"""
+
+from tactile_force.edge.errors import require as _require
+
+_require("torch", "export", "tactile_force.export (checkpoint loading and ONNX export)")
+_require("onnx", "export", "tactile_force.export (ONNX export and quantization)")
+
+from .calibration import CalibrationData, CalibrationError, random_frames  # noqa: E402
+from .checkpoint import (Checkpoint, CheckpointError, load_checkpoint, load_into, model_from_checkpoint,  # noqa: E402
+                         save_checkpoint)
+from .graph import name_nodes, op_counts, ort_optimized_ops  # noqa: E402
+from .macs import MacCount, count_macs  # noqa: E402
+from .onnx_export import ExportOptions, ParityError, ParityResult, export_bundle, to_onnx  # noqa: E402
+from .preprocess import ForceNet, Preprocess, network_hw, scale_factor  # noqa: E402
+from .quantize import FrameCalibrationReader, QuantizeError, QuantizeOptions, quantize_bundle  # noqa: E402
+from .zoo import (VARIANT_INPUTS, D, Dmod, ModelSpec, RGBmod, RGBmodD, UnknownVariantError, build_model,  # noqa: E402
+                  check_variant, fold_linear_head)
+
+__all__ = [name for name in dir() if not name.startswith("_")]

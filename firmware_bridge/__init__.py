@@ -1,1 +1,18 @@
-"""tactile_force.firmware_bridge: USB sensors, HID reference scale, OAK accelerator (each imported lazily)."""
+"""tactile_force.firmware_bridge: USB sensors, HID reference scale, OAK accelerator.
+
+Importing this package imports none of pyusb, hidapi or depthai: each is imported inside
+the function that needs it and a missing one raises MissingExtraError naming the extra
+(``usb`` for pyusb/hidapi, ``oak`` for depthai).
+"""
+
+from .digit import RESOLUTIONS, DigitOptions, DigitSource, intensity_code, reset_usb_device
+from .discovery import AttachedDevice, DiscoveryResult, classify, discover, find_digit, scan_pyusb, udev_rules_path
+from .hid_scale import (G, HidScale, ScaleOptions, ScaleReading, ScaleReportError, ScaleStatus, find_scales,
+                        parse_scale_report)
+from .nn_archive import NNArchiveInfo, archive_config, build_nn_archive
+from .oak import OakForceModel, OakOptions, available_oaks
+from .recorder import RecordOptions, RecordResult, prepare_output, record
+from .sysfs import UsbDeviceInfo, scan_sysfs
+from .usb_ids import DeviceKind, bcd_to_revision, classify_ids
+
+__all__ = [name for name in dir() if not name.startswith("_")]

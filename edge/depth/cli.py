@@ -1,0 +1,109 @@
+"""``tactile-force calibrate-depth``: ball presses -> our colour->normal LUT file + report.
+
+Presses: a folder of PNG/JPG frames (circles detected automatically) or an .npz with
+``imgs`` (N x H x W x 3 uint8 BGR) and optionally ``f0`` (background), ``touch_center``
+(N x 2, x y) and ``touch_radius`` (N,) in pixels.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from ..errors import DatasetError
+from ..progress import progress
+from .calibration import Circle, LUTOptions, Press, detect_press_circle, evaluate_lut, fit_lut
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("presses", help="folder of ball-press images, or .npz (imgs, f0, touch_center, touch_radius)")
+    parser.add_argument("--background", help="no-contact frame (image file); default: f0 of the .npz")
+    parser.add_argument("--ball-radius-mm", type=float, required=True, help="calibration ball radius, mm")
+    parser.add_argument("--px-per-mm", type=float, required=True, help="image scale, pixels per mm")
+    parser.add_argument("--holdout", type=float, default=0.25, help="share of presses held out for the report")
+    parser.add_argument("--detect", action="store_true", help="detect circles even when the .npz has labels")
+    parser.add_argument("--bins", type=int, default=32)
+    parser.add_argument("--bin-width", type=float, default=6.0, help="colour levels per LUT bin")
+    parser.add_argument("-o", "--output", required=True, help="calibration file to write (.npz)")
+
+
+def _read(path: Path) -> np.ndarray:
+    img = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    if img is None:
+        raise DatasetError(f"{path}: cannot decode image (empty, truncated or not an image)")
+    return img
+
+
+def load_presses(src: str, background: str | None) -> tuple[list[Press], np.ndarray]:
+    p = Path(src)
+    bg = _read(Path(background)) if background else None
+    if p.is_dir():
+        files = sorted(f for f in p.iterdir() if f.suffix.lower() in (".png", ".jpg", ".jpeg"))
+        if not files:
+            raise DatasetError(f"{p}: no .png/.jpg ball presses")
+        presses = [Press(_read(f), None, f.name) for f in files]
+    elif p.is_file():
+        try:
+            z = np.load(p)
+            imgs = z["imgs"]
+        except Exception as exc:
+            raise DatasetError(f"{p}: cannot read ball presses ({exc}); expected .npz with 'imgs'") from None
+        centers = z["touch_center"] if "touch_center" in z.files else None
+        radii = z["touch_radius"] if "touch_radius" in z.files else None
+        presses = []
+        for i, img in enumerate(imgs):
+            c = None
+            if centers is not None and radii is not None:
+                c = Circle(float(centers[i][0]), float(centers[i][1]), float(radii[i]))
+            presses.append(Press(np.ascontiguousarray(img), c, f"{p.name}[{i}]"))
+        if bg is None and "f0" in z.files:
+            bg = z["f0"]
+    else:
+        raise DatasetError(f"{p}: not found (expected a folder of images or an .npz)")
+    if bg is None:
+        raise DatasetError("no background frame: pass --background (a no-contact frame)")
+    for pr in presses:
+        if pr.frame.shape != bg.shape:
+            raise DatasetError(f"press {pr.name}: shape {pr.frame.shape} differs from the background {bg.shape}")
+    return presses, bg
+
+
+def main(args: argparse.Namespace) -> int:
+    presses, bg = load_presses(args.presses, args.background)
+    ball_px = args.ball_radius_mm * args.px_per_mm
+    found: list[Press] = []
+    for pr in progress(presses, desc="detecting circles"):
+        c = pr.circle
+        if c is None or args.detect:
+            c = detect_press_circle(pr.frame, bg)
+        if c is None:
+            print(f"  {pr.name}: no contact circle found, skipped")
+            continue
+        found.append(Press(pr.frame, c, pr.name))
+    if len(found) < 2:
+        raise DatasetError(f"only {len(found)} presses with a circle; need at least 2 (one to fit, one to test)")
+    n_test = max(1, int(round(len(found) * args.holdout)))
+    # Every k-th press is held out so train and test cover the gel alike.
+    step = len(found) / n_test
+    test_i = {int(i * step + step / 2) for i in range(n_test)}
+    train = [p for i, p in enumerate(found) if i not in test_i]
+    test = [p for i, p in enumerate(found) if i in test_i]
+    lut = fit_lut(train, bg, ball_px, LUTOptions(bins=args.bins, bin_width=args.bin_width))
+    err_train = evaluate_lut(lut, train, ball_px)
+    err_test = evaluate_lut(lut, test, ball_px)
+    lut.px_per_mm = args.px_per_mm
+    lut.ball_radius_mm = args.ball_radius_mm
+    lut.report = {"train_presses": len(train), "test_presses": len(test), "ball_radius_px": ball_px,
+                  "train_angle_deg": {"mean": err_train.mean_deg, "median": err_train.median_deg, "p90": err_train.p90_deg},
+                  "heldout_angle_deg": {"mean": err_test.mean_deg, "median": err_test.median_deg, "p90": err_test.p90_deg}}
+    out = lut.save(args.output)
+    print(f"calibrate-depth: {len(found)}/{len(presses)} presses with a circle; fit on {len(train)}, held out {len(test)}")
+    print(f"  normal angle error, fit presses:       mean {err_train.mean_deg:5.2f} deg  median {err_train.median_deg:5.2f}  p90 {err_train.p90_deg:5.2f}")
+    print(f"  normal angle error, held-out presses:  mean {err_test.mean_deg:5.2f} deg  median {err_test.median_deg:5.2f}  p90 {err_test.p90_deg:5.2f}")
+    print(f"  wrote {out}")
+    print(json.dumps(lut.report))
+    return 0

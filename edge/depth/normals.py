@@ -1,0 +1,119 @@
+"""The paper's colour -> surface-normal MLP, evaluated in numpy.
+
+Weights come from a user-given .npz (e.g. ../shared/data/aurova_digit_depth_mlp.npz; it
+is not shipped in the package): fc1 (32x5), fc2 (32x32), fc3 (32x32), fc4 (3x32) plus
+biases, ReLU after fc1 and fc2 only. Input per pixel: (col/240, row/320, R/255, G/255,
+B/255) in RGB order. Output: the normal encoded as (n + 1) / 2 with the digit-depth
+labelling convention n = (nx, -ny, nz) (y up); :func:`decode_paper_normals` turns it into
+this package's convention (y down, see gradients.py).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import TactileForceError
+
+_LAYERS = (("fc1", (32, 5)), ("fc2", (32, 32)), ("fc3", (32, 32)), ("fc4", (3, 32)))
+
+
+class MappingError(TactileForceError, ValueError):
+    """A colour->normal mapping file is missing, truncated or of the wrong layout."""
+
+
+def _load_npz(path: str | os.PathLike) -> dict[str, np.ndarray]:
+    p = Path(path)
+    if not p.is_file():
+        raise MappingError(f"{p}: mapping file not found (expected the paper MLP .npz or a calibrate-depth .npz)")
+    try:
+        with np.load(p, allow_pickle=False) as z:
+            return {k: z[k] for k in z.files}
+    except Exception as exc:  # zipfile/pickle/ValueError: truncated or not an npz
+        raise MappingError(f"{p}: cannot read as .npz ({exc.__class__.__name__}: {exc}); file empty or truncated?") from None
+
+
+def is_paper_mlp(arrays: dict[str, np.ndarray]) -> bool:
+    """True when the npz arrays look like the paper MLP (fc1.weight ... or fc1_weight ...)."""
+    return any(k in arrays for k in ("fc1.weight", "fc1_weight"))
+
+
+class PaperMLP:
+    """The paper's 5-32-32-32-3 MLP. ``encoded(frame, index)`` -> (N, 3) float32 in the
+    paper's (n + 1)/2 encoding for the pixels ``index`` (flat indices into H x W)."""
+
+    def __init__(self, weights: dict[str, np.ndarray], source: str = "<arrays>") -> None:
+        self.source = source
+        self.w: list[np.ndarray] = []
+        self.b: list[np.ndarray] = []
+        for name, shape in _LAYERS:
+            w = weights.get(f"{name}.weight", weights.get(f"{name}_weight"))
+            b = weights.get(f"{name}.bias", weights.get(f"{name}_bias"))
+            if w is None or b is None:
+                raise MappingError(f"{source}: missing {name} weight/bias; expected fc1..fc4 of a 5-32-32-32-3 MLP")
+            if w.shape != shape or b.shape != (shape[0],):
+                raise MappingError(f"{source}: {name} weight {w.shape} bias {b.shape}; expected {shape} and ({shape[0]},)")
+            if not (np.all(np.isfinite(w)) and np.all(np.isfinite(b))):
+                raise MappingError(f"{source}: {name} holds NaN or inf (corrupted weights)")
+            # Stored transposed so a row-major (N, in) batch multiplies without copies.
+            self.w.append(np.ascontiguousarray(w.T, dtype=np.float32))
+            self.b.append(b.astype(np.float32))
+        self._grid: tuple[int, int] | None = None
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> "PaperMLP":
+        arrays = _load_npz(path)
+        if not is_paper_mlp(arrays):
+            raise MappingError(f"{path}: keys {sorted(arrays)[:6]}...; expected the paper MLP (fc1.weight ...)")
+        return cls(arrays, str(path))
+
+    def _coords(self, shape: tuple[int, int]) -> None:
+        if self._grid != shape:
+            h, w = shape
+            rows, cols = np.mgrid[0:h, 0:w]
+            # The authors normalise by the DIGIT size 240 x 320 whatever the frame.
+            self._xy = np.stack([cols.ravel() / 240.0, rows.ravel() / 320.0], axis=1).astype(np.float32)
+            self._grid = shape
+
+    def encoded(self, frame: np.ndarray, index: np.ndarray | None = None) -> np.ndarray:
+        """frame: H x W x 3 uint8 BGR; index: flat pixel indices (None = all).
+        Returns (N, 3) float32 (n + 1)/2 encoded normals, digit-depth convention."""
+        h, w = frame.shape[:2]
+        self._coords((h, w))
+        bgr = frame.reshape(-1, 3)
+        xy = self._xy
+        if index is not None:
+            bgr = bgr[index]
+            xy = xy[index]
+        x = np.empty((bgr.shape[0], 5), dtype=np.float32)
+        x[:, :2] = xy
+        x[:, 2:] = bgr[:, ::-1]
+        x[:, 2:] *= 1.0 / 255.0
+        a = x @ self.w[0]
+        a += self.b[0]
+        np.maximum(a, 0, out=a)
+        a = a @ self.w[1]
+        a += self.b[1]
+        np.maximum(a, 0, out=a)
+        a = a @ self.w[2]
+        a += self.b[2]
+        a = a @ self.w[3]
+        a += self.b[3]
+        return a
+
+
+def decode_paper_normals(encoded: np.ndarray) -> np.ndarray:
+    """(N, 3) paper encoding (n + 1)/2, y up -> (N, 3) unit normals, y down (this package's
+    convention). Zero-length vectors become (0, 0, 1)."""
+    n = encoded.astype(np.float32, copy=True)
+    n *= 2.0
+    n -= 1.0
+    n[:, 1] *= -1.0
+    norm = np.sqrt(np.einsum("ij,ij->i", n, n))
+    bad = ~(norm > 1e-6)
+    norm[bad] = 1.0
+    n /= norm[:, None]
+    n[bad] = (0.0, 0.0, 1.0)
+    return n

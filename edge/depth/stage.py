@@ -1,0 +1,225 @@
+"""The depth stage: frame + contact mask -> the paper's 8-bit depth image.
+
+Options -> create -> process -> typed result::
+
+    stage = DepthStage(DepthOptions(mapping="calib.npz"))          # exact mode
+    res = stage.process(frame, mask)      # frame 320x240x3 uint8 BGR, mask 320x240 uint8/bool
+    res.depth                             # 320x240x1 uint8, 0 outside the mask
+    res.ok, res.detail                    # False + why, for unusable input (never raises)
+
+Paper-compatible mode reproduces the authors' depth images (their D / Dmod / RGBmod+D
+checkpoints were trained on them) and needs ``set_reference(frames)`` first.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..frames import FRAME_SHAPE, exposure_problem
+from .calibration import NormalLUT
+from .depth_image import exact_depth_image, paper_depth_image
+from .gradients import GradientGuards, normals_to_gradients
+from .normals import MappingError, PaperMLP, _load_npz, decode_paper_normals, is_paper_mlp
+from .poisson import PoissonSolver
+
+MODES = ("exact", "paper")
+
+
+@dataclass(slots=True)
+class DepthOptions:
+    """mapping: path of the paper MLP .npz or of a ``calibrate-depth`` .npz;
+    mode: 'exact' (decoded normals, guarded gradients, exact DST-I solve, heights in px)
+    or 'paper' (the authors' pipeline; needs the paper MLP and a reference);
+    levels_per_px: exact-mode 8-bit levels per pixel of indentation (255/20: 20 px -> 255);
+    paper_scale: paper-mode levels per metre of the authors' map (their x255 times 1000);
+    gel_width_m / gel_height_m: the authors' gel size for their gradient units (AUROVA DIGIT);
+    guards: n_z floor and slope clamp; saturated_fraction: share of mask pixels with a
+    channel at 255 above which the frame is flagged 'saturated'; solver_dtype: float32/64.
+    """
+
+    mapping: str | os.PathLike
+    mode: str = "exact"
+    levels_per_px: float = 255.0 / 20.0
+    paper_scale: float = 255.0 * 1000.0
+    gel_width_m: float = 0.01832
+    gel_height_m: float = 0.02505
+    guards: GradientGuards = field(default_factory=GradientGuards)
+    saturated_fraction: float = 0.5
+    solver_dtype: str = "float32"
+
+    def __post_init__(self) -> None:
+        if self.mode not in MODES:
+            raise ValueError(f"DepthOptions.mode={self.mode!r}: expected one of {MODES}")
+        for name in ("levels_per_px", "paper_scale", "gel_width_m", "gel_height_m"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v > 0):
+                raise ValueError(f"DepthOptions.{name}={v}: expected a finite value > 0")
+
+
+@dataclass(slots=True)
+class DepthResult:
+    """depth: H x W x 1 uint8 (a new array); ok: False when the input was unusable (depth
+    is then all 0); detail: why not ok, or notes; height: H x W float32 internal buffer
+    (exact: px of indentation; paper: the authors' distance map, m), overwritten by the
+    next call; contact_px: mask pixels; clamped_px: gradient elements that hit a guard."""
+
+    depth: np.ndarray
+    ok: bool
+    detail: str = ""
+    height: np.ndarray | None = None
+    contact_px: int = 0
+    clamped_px: int = 0
+
+
+class DepthStage:
+    """Reusable depth stage for 320 x 240 frames; buffers and tables are made once."""
+
+    def __init__(self, options: DepthOptions) -> None:
+        self.options = options
+        arrays = _load_npz(options.mapping)
+        self.mlp: PaperMLP | None = None
+        self.lut: NormalLUT | None = None
+        if is_paper_mlp(arrays):
+            self.mlp = PaperMLP(arrays, str(options.mapping))
+        else:
+            self.lut = NormalLUT.from_arrays(arrays, str(options.mapping))
+            if self.lut.background.shape != FRAME_SHAPE:
+                raise MappingError(f"{options.mapping}: calibrated on {self.lut.background.shape} frames; "
+                                   f"the depth stage needs {FRAME_SHAPE} (DIGIT portrait)")
+            # Guarded gradients per LUT cell, once: per frame it is a single table lookup.
+            gx, gy, _ = normals_to_gradients(self.lut.flat_lut, options.guards)
+            self._glut = np.stack([gx, gy], axis=1).astype(np.float32)
+        if options.mode == "paper" and self.mlp is None:
+            raise MappingError(f"{options.mapping}: paper mode needs the paper MLP .npz, not a calibrate-depth LUT")
+        h, w = FRAME_SHAPE[:2]
+        dtype = np.float32 if options.solver_dtype == "float32" else np.float64
+        self.solver = PoissonSolver((h, w), dtype)
+        self._gx = np.zeros((h, w), dtype=np.float32)
+        self._gy = np.zeros((h, w), dtype=np.float32)
+        self._height = np.zeros((h, w), dtype=dtype)
+        self._depth = np.zeros((h, w, 1), dtype=np.uint8)
+        self._full_mask = np.ones((h, w), dtype=bool)
+        self.reference: np.ndarray | None = None
+
+    # ------------------------------------------------------------------ reference
+    @property
+    def needs_reference(self) -> bool:
+        """True in paper mode until :meth:`set_reference` was called."""
+        return self.options.mode == "paper" and self.reference is None
+
+    def set_reference(self, frames) -> int:
+        """Paper mode: zero-depth reference = mean authors' map of ``frames`` (no-contact
+        frames; the authors used the first 50 of a stream). Returns frames used."""
+        if self.options.mode != "paper":
+            raise ValueError("set_reference: only paper mode uses a zero-depth reference")
+        acc = np.zeros(FRAME_SHAPE[:2], dtype=np.float64)
+        n = 0
+        for f in frames:
+            f = getattr(f, "frame", f)
+            if self._frame_problem(f) is None:
+                acc += self._paper_distance(f)
+                n += 1
+        if n == 0:
+            raise ValueError("set_reference: no usable frame (expected 320x240x3 uint8 BGR, not all-dark/white)")
+        self.reference = (acc / n).astype(self._height.dtype)
+        return n
+
+    # ------------------------------------------------------------------ per frame
+    @staticmethod
+    def _frame_problem(frame) -> str | None:
+        if not isinstance(frame, np.ndarray):
+            return f"frame: expected numpy.ndarray, got {type(frame).__name__}"
+        if frame.dtype != np.uint8:
+            nan = ""
+            if np.issubdtype(frame.dtype, np.floating) and not np.all(np.isfinite(frame)):
+                nan = " holding NaN/inf"
+            return f"frame: dtype {frame.dtype}{nan}; expected uint8 BGR"
+        if frame.shape != FRAME_SHAPE:
+            return f"frame: shape {frame.shape}; expected {FRAME_SHAPE} (HxWx3 BGR)"
+        return exposure_problem(frame)
+
+    def _mask(self, mask) -> tuple[np.ndarray | None, str]:
+        if mask is None:
+            return self._full_mask, ""
+        m = np.asarray(mask)
+        if m.ndim == 3 and m.shape[2] == 1:
+            m = m[..., 0]
+        if m.shape != FRAME_SHAPE[:2]:
+            return None, f"mask: shape {m.shape}; expected {FRAME_SHAPE[:2]} uint8 0/255 or bool"
+        if m.dtype == bool:
+            return m, ""
+        if np.issubdtype(m.dtype, np.floating) and not np.all(np.isfinite(m)):
+            return None, "mask: holds NaN/inf; expected uint8 0/255 or bool"
+        return m > 0, ""
+
+    def _fail(self, detail: str, contact_px: int = 0) -> DepthResult:
+        return DepthResult(depth=np.zeros_like(self._depth), ok=False, detail=detail, contact_px=contact_px)
+
+    def process(self, frame: np.ndarray, mask: np.ndarray | None) -> DepthResult:
+        """frame: 320x240x3 uint8 BGR; mask: 320x240 uint8 0/255 or bool (None = full
+        frame). Never raises on bad content: returns ok=False with an all-zero depth."""
+        try:
+            problem = self._frame_problem(frame)
+            if problem is not None:
+                return self._fail(f"invalid input: {problem}")
+            m, why = self._mask(mask)
+            if m is None:
+                return self._fail(f"invalid input: {why}")
+            idx = np.flatnonzero(m)
+            if idx.size == 0:
+                return self._fail("empty mask: no contact to reconstruct")
+            sat = np.count_nonzero(frame.reshape(-1, 3)[idx].max(axis=1) >= 255)
+            if sat > self.options.saturated_fraction * idx.size:
+                return self._fail(f"saturated: {sat}/{idx.size} contact pixels at 255", int(idx.size))
+            if self.options.mode == "paper":
+                return self._process_paper(frame, m, int(idx.size))
+            return self._process_exact(frame, m, idx)
+        except Exception as exc:  # last line of defence: the runtime loop must survive
+            return self._fail(f"depth stage error: {exc.__class__.__name__}: {exc}")
+
+    def _process_exact(self, frame: np.ndarray, m: np.ndarray, idx: np.ndarray) -> DepthResult:
+        gx, gy = self._gx, self._gy
+        gx.fill(0.0)
+        gy.fill(0.0)
+        clamped = 0
+        if self.lut is not None:
+            g = self._glut[self.lut.index(frame, idx)]
+            gx.ravel()[idx] = g[:, 0]
+            gy.ravel()[idx] = g[:, 1]
+        else:
+            n = decode_paper_normals(self.mlp.encoded(frame, idx))
+            vx, vy, clamped = normals_to_gradients(n, self.options.guards)
+            gx.ravel()[idx] = vx
+            gy.ravel()[idx] = vy
+        h = self.solver.solve(gx, gy, out=self._height)
+        if not np.isfinite(h).all():  # cannot happen with guarded gradients; kept as a guard
+            return self._fail("non-finite height after integration", int(idx.size))
+        exact_depth_image(h, m, self.options.levels_per_px, self._depth)
+        detail = f"{clamped} gradient values clamped" if clamped else ""
+        return DepthResult(self._depth.copy(), True, detail, h, int(idx.size), clamped)
+
+    def _paper_distance(self, frame: np.ndarray) -> np.ndarray:
+        """The authors' integrated map (metres; lower = pressed toward the camera)."""
+        o = self.mlp.encoded(frame).reshape(FRAME_SHAPE)
+        h, w = FRAME_SHAPE[:2]
+        nz = np.maximum(o[..., 2], 0.1 / 255.0)  # their EPS = 0.1 on outputs scaled x255
+        gx, gy = self._gx, self._gy
+        np.divide(o[..., 0], nz, out=gx)
+        gx *= self.options.gel_width_m / w
+        np.divide(o[..., 1], nz, out=gy)
+        gy *= -self.options.gel_height_m / h
+        for g in (gx, gy):
+            g[~np.isfinite(g)] = 0.0
+        return self.solver.solve(gx, gy, out=self._height)
+
+    def _process_paper(self, frame: np.ndarray, m: np.ndarray, contact_px: int) -> DepthResult:
+        if self.reference is None:
+            return self._fail("paper mode: no zero-depth reference; call set_reference(frames) first", contact_px)
+        d = self._paper_distance(frame)
+        if not np.isfinite(d).all():
+            return self._fail("non-finite depth after integration", contact_px)
+        paper_depth_image(d, self.reference, m, self.options.paper_scale, self._depth)
+        return DepthResult(self._depth.copy(), True, "", d, contact_px, 0)

@@ -1,0 +1,183 @@
+"""ONNX Runtime inference on a verified model bundle, plus the bundle ladder.
+
+:class:`OnnxForceModel` wraps one ORT session: intra-op threads configurable (default 1),
+sequential execution, input buffers for batch 1..2 allocated once, warm-up at load.
+``predict(rgb (N,320,240,3) uint8, depth (N,320,240,1) uint8 | None) -> (N,) float32 N``.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .bundle import Bundle, load_bundle
+from .errors import BundleError, FrameError
+from .frames import FRAME_ROWS, FRAME_COLS
+
+RGB_SHAPE = (FRAME_ROWS, FRAME_COLS, 3)
+DEPTH_SHAPE = (FRAME_ROWS, FRAME_COLS, 1)
+MAX_BATCH = 2  # both fingers of a gripper
+
+
+def _check_batch(x: object, name: str, shape: tuple[int, ...], max_batch: int) -> np.ndarray:
+    if not isinstance(x, np.ndarray):
+        raise FrameError(f"{name}: expected a numpy.ndarray (N,{','.join(map(str, shape))}) uint8, got {type(x).__name__}")
+    if x.size == 0:
+        raise FrameError(f"{name}: empty array (shape {x.shape}); expected (N,{','.join(map(str, shape))}) uint8, N >= 1")
+    if x.dtype != np.uint8:
+        nan = " and contains NaN/inf" if np.issubdtype(x.dtype, np.floating) and not np.isfinite(x).all() else ""
+        raise FrameError(f"{name}: dtype {x.dtype}{nan}; expected uint8 (BGR 0..255, scaling is inside the graph)")
+    if x.ndim != 4 or x.shape[1:] != shape:
+        raise FrameError(f"{name}: shape {x.shape}; expected (N,{','.join(map(str, shape))}) uint8")
+    if not 1 <= x.shape[0] <= max_batch:
+        raise FrameError(f"{name}: batch {x.shape[0]}; this model takes 1..{max_batch} frames per call")
+    return x
+
+
+class OnnxForceModel:
+    """Force model on the CPU through ONNX Runtime.
+
+    bundle: a verified :class:`Bundle` or a path to one (verified here: a bundle whose
+    hash does not match is refused). threads: intra-op threads (1 = predictable latency
+    next to other robot processes).
+    """
+
+    backend = "cpu"
+
+    def __init__(self, bundle: Bundle | str | os.PathLike, threads: int = 1, warmup: int = 2) -> None:
+        import onnxruntime as ort
+
+        self.bundle = bundle if isinstance(bundle, Bundle) else load_bundle(bundle)
+        m = self.bundle.manifest
+        if threads < 1:
+            raise ValueError(f"threads={threads}: expected >= 1 intra-op threads")
+        self.threads = threads
+        so = ort.SessionOptions()
+        so.intra_op_num_threads = threads
+        so.inter_op_num_threads = 1
+        so.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
+        so.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL
+        so.log_severity_level = 3
+        try:
+            self.session = ort.InferenceSession(str(self.bundle.onnx_path), so, providers=["CPUExecutionProvider"])
+        except Exception as exc:  # ORT raises its own Fail/InvalidGraph types
+            raise BundleError(f"{self.bundle.onnx_path}: ONNX Runtime cannot load the model ({exc})") from None
+        graph_inputs = {i.name: i for i in self.session.get_inputs()}
+        by_kind = {s.kind: s for s in m.inputs}
+        if "rgb" not in by_kind:
+            raise BundleError(f"{self.bundle.path}: manifest declares no 'rgb' input")
+        for spec in m.inputs:
+            gi = graph_inputs.get(spec.name)
+            if gi is None:
+                raise BundleError(f"{self.bundle.path}: manifest input {spec.name!r} is not in the ONNX graph "
+                                  f"(graph inputs: {sorted(graph_inputs)}); model and manifest do not match")
+            if gi.type != "tensor(uint8)":
+                raise BundleError(f"{self.bundle.path}: graph input {spec.name!r} is {gi.type}; the bundle contract is uint8")
+        self.rgb_name = by_kind["rgb"].name
+        self.depth_name = by_kind["depth"].name if "depth" in by_kind else None
+        if m.needs_depth and self.depth_name is None:
+            raise BundleError(f"{self.bundle.path}: variant {m.variant!r} needs a 'depth' input but the manifest has none")
+        self.output_name = m.output.name
+        if self.output_name not in {o.name for o in self.session.get_outputs()}:
+            raise BundleError(f"{self.bundle.path}: manifest output {self.output_name!r} is not a graph output")
+        # Allocated once; predict copies into the first N rows.
+        self._rgb = np.zeros((MAX_BATCH, *RGB_SHAPE), np.uint8)
+        self._depth = np.zeros((MAX_BATCH, *DEPTH_SHAPE), np.uint8) if self.depth_name else None
+        self._feeds = [self._feed(n) for n in range(1, MAX_BATCH + 1)]
+        for _ in range(warmup):
+            for n in range(1, MAX_BATCH + 1):
+                self._run(n)
+
+    @property
+    def needs_depth(self) -> bool:
+        return self.depth_name is not None
+
+    def _feed(self, n: int) -> dict[str, np.ndarray]:
+        feed = {self.rgb_name: self._rgb[:n]}
+        if self._depth is not None:
+            feed[self.depth_name] = self._depth[:n]
+        return feed
+
+    def _run(self, n: int) -> np.ndarray:
+        out = self.session.run([self.output_name], self._feeds[n - 1])[0]
+        out = np.asarray(out, dtype=np.float32).reshape(-1)
+        if out.size != n:
+            raise BundleError(f"{self.bundle.onnx_path}: output {self.output_name!r} has {out.size} values for a batch "
+                              f"of {n}; expected one force (N) per frame")
+        return out
+
+    def predict(self, rgb: np.ndarray, depth: np.ndarray | None = None) -> np.ndarray:
+        """Forces in newtons, (N,) float32, for rgb (N,320,240,3) uint8 BGR and, for
+        depth variants, depth (N,320,240,1) uint8. N is 1 or 2."""
+        rgb = _check_batch(rgb, "rgb", RGB_SHAPE, MAX_BATCH)
+        n = rgb.shape[0]
+        if self._depth is not None:
+            if depth is None:
+                raise FrameError(f"depth: this {self.bundle.variant} bundle needs a depth image (N,320,240,1) uint8")
+            depth = _check_batch(depth, "depth", DEPTH_SHAPE, MAX_BATCH)
+            if depth.shape[0] != n:
+                raise FrameError(f"depth: batch {depth.shape[0]} but rgb batch {n}; expected one depth image per frame")
+            self._depth[:n] = depth
+        self._rgb[:n] = rgb
+        return self._run(n).copy()
+
+
+def error_score(bundle: Bundle) -> float:
+    """Lower is more accurate: the manifest's relative error vs ground truth (re_mean),
+    else its MAE in N; inf when the manifest records neither."""
+    err = bundle.manifest.error or {}
+    for scope in (err, err.get("vs_truth") or {}, err.get("truth") or {}):
+        for key in ("re_mean", "mae_mean", "mae_n"):
+            v = scope.get(key) if isinstance(scope, dict) else None
+            if isinstance(v, (int, float)) and np.isfinite(v):
+                return float(v)
+    return float("inf")
+
+
+@dataclass
+class LadderChoice:
+    """The bundle the ladder picked and why; p99_ms per candidate path (batch-2 calls)."""
+
+    path: Path
+    reason: str
+    p99_ms: dict[str, float] = field(default_factory=dict)
+    score: dict[str, float] = field(default_factory=dict)
+
+
+def measure_p99_ms(model: OnnxForceModel, runs: int = 30) -> float:
+    """p99 wall time (ms) of a batch-2 predict on zeros (the worst case at run time)."""
+    rgb = np.zeros((MAX_BATCH, *RGB_SHAPE), np.uint8)
+    depth = np.zeros((MAX_BATCH, *DEPTH_SHAPE), np.uint8) if model.needs_depth else None
+    times = []
+    for _ in range(runs):
+        t0 = time.perf_counter_ns()
+        model.predict(rgb, depth)
+        times.append((time.perf_counter_ns() - t0) / 1e6)
+    return float(np.percentile(times, 99))
+
+
+def choose_bundle(paths: list[str | os.PathLike], budget_ms: float, threads: int = 1,
+                  runs: int = 30) -> tuple[OnnxForceModel, LadderChoice]:
+    """Measure each bundle's p99 and keep the most accurate one (manifest error) whose p99
+    fits ``budget_ms``; if none fits, the fastest. Returns the loaded model and the choice."""
+    if not paths:
+        raise BundleError("bundle ladder: no bundles given")
+    models, p99, score = {}, {}, {}
+    for p in paths:
+        m = OnnxForceModel(p, threads=threads)
+        key = str(p)
+        models[key], p99[key], score[key] = m, measure_p99_ms(m, runs), error_score(m.bundle)
+    fits = [k for k in models if p99[k] <= budget_ms]
+    if fits:
+        best = min(fits, key=lambda k: (score[k], list(models).index(k)))
+        reason = (f"picked {Path(best).name}: most accurate that fits (error {score[best]:.3g}, p99 {p99[best]:.2f} ms "
+                  f"<= budget {budget_ms:.2f} ms)")
+    else:
+        best = min(models, key=lambda k: p99[k])
+        reason = (f"no bundle fits the {budget_ms:.2f} ms budget; picked the fastest, {Path(best).name} "
+                  f"(p99 {p99[best]:.2f} ms): readings will be flagged late")
+    return models[best], LadderChoice(Path(best), reason, p99, score)

@@ -1,0 +1,107 @@
+"""Reading writers: stdout lines, a one-line live status, CSV and JSONL files.
+
+File writers flush after every reading, so whatever was written survives a crash or a
+sensor failure; ``fsync=True`` also forces it to the disk (slower).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import sys
+from pathlib import Path
+from typing import TextIO
+
+from .reading import ForceReading
+
+FIELDS = list(ForceReading("", 0, 0, 0.0).as_dict())
+
+
+def _json_value(v):
+    if isinstance(v, float) and not math.isfinite(v):
+        return None  # JSON has no NaN; null = not measured
+    return v
+
+
+def format_reading(r: ForceReading) -> str:
+    """One human line: sensor, frame, force, truth, flags, total latency."""
+    force = "   --  " if math.isnan(r.force_n) else f"{r.force_n:6.2f} N"
+    truth = "" if r.truth_n is None else f"  truth {r.truth_n:6.2f} N"
+    flags = ",".join(r.flags.names()) or "ok"
+    return f"{r.sensor:>6} #{r.frame_index:<6d} {force}{truth}  [{flags}]  {r.latency.total_ms:6.2f} ms"
+
+
+class _FileWriter:
+    def __init__(self, path: str | os.PathLike, fsync: bool = False) -> None:
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._fh: TextIO = open(self.path, "w", newline="")
+        self._fsync = fsync
+
+    def _flush(self) -> None:
+        self._fh.flush()
+        if self._fsync:
+            os.fsync(self._fh.fileno())
+
+    def close(self) -> None:
+        if not self._fh.closed:
+            self._fh.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+class CsvWriter(_FileWriter):
+    """CSV with a header (ForceReading.as_dict keys); one row per reading, flushed."""
+
+    def __init__(self, path: str | os.PathLike, fsync: bool = False) -> None:
+        super().__init__(path, fsync)
+        self._w = csv.DictWriter(self._fh, fieldnames=FIELDS)
+        self._w.writeheader()
+        self._flush()
+
+    def write(self, r: ForceReading) -> None:
+        self._w.writerow(r.as_dict())
+        self._flush()
+
+
+class JsonlWriter(_FileWriter):
+    """One JSON object per line per reading (NaN written as null), flushed."""
+
+    def write(self, r: ForceReading) -> None:
+        self._fh.write(json.dumps({k: _json_value(v) for k, v in r.as_dict().items()}) + "\n")
+        self._flush()
+
+
+class StdoutWriter:
+    """Readings on stdout: every reading as a line, or (``live=True``) one status line
+    rewritten in place with the newest force, flags and the rolling p99 from ``p99_ms()``."""
+
+    def __init__(self, live: bool = False, stream: TextIO | None = None, p99_ms=None, every: int = 1) -> None:
+        self.stream = stream or sys.stdout
+        self.live = live
+        self._p99 = p99_ms
+        self._every = max(1, every)
+        self._n = 0
+
+    def write(self, r: ForceReading) -> None:
+        self._n += 1
+        if not self.live:
+            self.stream.write(format_reading(r) + "\n")
+            self.stream.flush()
+            return
+        if self._n % self._every:
+            return
+        p99 = f"  p99 {self._p99():6.2f} ms" if self._p99 is not None else ""
+        self.stream.write("\r" + format_reading(r) + p99 + "   ")
+        self.stream.flush()
+
+    def close(self) -> None:
+        if self.live and self._n:
+            self.stream.write("\n")
+            self.stream.flush()

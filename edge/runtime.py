@@ -1,0 +1,342 @@
+"""The latency-bounded loop: sources -> gates -> [depth] -> one batched inference -> readings.
+
+One :meth:`ForceRuntime.step` reads the newest frame of every live sensor, gates it, runs
+the depth stage (depth bundles only) and one ``predict`` call for all sensors in contact
+(batch 2 when both fingers touch), and returns one :class:`ForceReading` per frame:
+
+- gate closed -> 0 N, ``no_contact``, the CNN is not run;
+- frames a source skipped because a newer one arrived -> ``stale`` readings (force nan);
+- a reading whose total latency exceeds ``deadline_ms`` -> ``late`` (still reported);
+- wrong shape/dtype, NaN, empty, all-dark/all-white frame, a failed depth stage -> ``invalid_input``;
+- estimate < 1 N -> ``below_range`` (clamped at 0); >= 15 N or gel saturation seen -> ``saturated``
+  (clamped at 15 N, a lower bound);
+- a source that raises SourceError gives one ``invalid_input`` reading naming the error and
+  is dropped; the other sensor keeps being served.
+
+Latency per stage is in every reading and as rolling p50/p99 (:meth:`ForceRuntime.latency`).
+Timing uses an injectable ``clock`` (ns) so tests drive it deterministically.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import asdict, dataclass, field
+from typing import Callable, Iterable, Protocol
+
+import numpy as np
+
+from .errors import FrameError, SourceError
+from .frames import FRAME_SHAPE, FrameSource, TimedFrame, check_frame, exposure_problem
+from .gate import ContactGate, GateResult
+from .reading import MAX_VALID_FORCE_N, MIN_VALID_FORCE_N, Flags, ForceReading, StageLatency
+
+STAGES = ("source", "gate", "depth", "inference", "total")
+
+
+class ForceModel(Protocol):
+    """What the runtime needs from a backend (OnnxForceModel, the OAK backend)."""
+
+    needs_depth: bool
+
+    def predict(self, rgb: np.ndarray, depth: np.ndarray | None = None) -> np.ndarray: ...
+
+
+class ReadingSink(Protocol):
+    def write(self, reading: ForceReading) -> None: ...
+
+    def close(self) -> None: ...
+
+
+@dataclass
+class RuntimeOptions:
+    """deadline_ms: per-frame budget from frame arrival to reading (60 fps -> 16.7 ms).
+    threads: ORT intra-op threads (used when the runtime loads the model).
+    report_stale: emit a ``stale`` reading for every superseded frame.
+    latency_window: frames kept for the rolling p50/p99."""
+
+    deadline_ms: float = 16.7
+    threads: int = 1
+    report_stale: bool = True
+    latency_window: int = 600
+
+
+@dataclass
+class Sensor:
+    """One tactile sensor: its frame source and its contact gate; ``depth`` is the depth
+    stage the runtime built for it (None for RGB-only bundles)."""
+
+    name: str
+    source: FrameSource
+    gate: ContactGate
+    depth: object | None = None
+    alive: bool = True
+    error: str = ""
+
+
+@dataclass
+class RuntimeStats:
+    """Counters over a run; latency_ms[stage] = {'p50': ms, 'p99': ms}."""
+
+    readings: int = 0
+    processed: int = 0
+    inferred: int = 0
+    no_contact: int = 0
+    stale: int = 0
+    late: int = 0
+    invalid: int = 0
+    source_errors: int = 0
+    latency_ms: dict[str, dict[str, float]] = field(default_factory=dict)
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+class LatencyWindow:
+    """Rolling per-stage latencies (ms) in a preallocated ring buffer."""
+
+    def __init__(self, size: int) -> None:
+        self._buf = np.full((max(1, size), len(STAGES)), np.nan, np.float64)
+        self._i = 0
+        self._n = 0
+
+    def add(self, lat: StageLatency) -> None:
+        row = self._buf[self._i]
+        row[0], row[1], row[2], row[3], row[4] = lat.source_ms, lat.gate_ms, lat.depth_ms, lat.inference_ms, lat.total_ms
+        self._i = (self._i + 1) % len(self._buf)
+        self._n = min(self._n + 1, len(self._buf))
+
+    def percentiles(self) -> dict[str, dict[str, float]]:
+        if self._n == 0:
+            return {s: {"p50": math.nan, "p99": math.nan} for s in STAGES}
+        p = np.percentile(self._buf[: self._n], [50, 99], axis=0)
+        return {s: {"p50": float(p[0, k]), "p99": float(p[1, k])} for k, s in enumerate(STAGES)}
+
+
+def build_depth_stage(options: dict | None = None):
+    """The depth stage for D/Dmod/RGBmod+D bundles (imported only for those)."""
+    from .depth import DepthOptions, DepthStage  # noqa: PLC0415 - lazy on purpose
+
+    return DepthStage(DepthOptions(**(options or {})))
+
+
+def plan_stages(sensors: Iterable[str], needs_depth: bool, backend: str = "cpu") -> list[str]:
+    """Names of the stages a runtime will run, in order, e.g. ['source:left', 'gate:left',
+    'inference:cpu']; 'depth:NAME' only for depth bundles."""
+    out = []
+    for name in sensors:
+        out += [f"source:{name}", f"gate:{name}"] + ([f"depth:{name}"] if needs_depth else [])
+    return out + [f"inference:{backend}"]
+
+
+@dataclass(slots=True)
+class _Pending:
+    sensor: Sensor
+    tf: TimedFrame
+    frame: np.ndarray
+    gate: GateResult
+    start_ns: int
+    source_ms: float
+    gate_ms: float
+    depth_ms: float = 0.0
+    depth: np.ndarray | None = None
+
+
+class ForceRuntime:
+    """Serve force readings for one or two sensors from one model.
+
+    sensors: one or two :class:`Sensor` (names unique). model: an object with
+    ``predict(rgb, depth=None)`` and ``needs_depth`` (OnnxForceModel, the OAK backend).
+    depth_factory: builds one depth stage per sensor for depth models (default
+    :func:`build_depth_stage`). clock: monotonic ns; give sources the same clock.
+    """
+
+    def __init__(self, sensors: list[Sensor], model: ForceModel, options: RuntimeOptions | None = None,
+                 clock: Callable[[], int] = time.monotonic_ns,
+                 depth_factory: Callable[[], object] | None = None, backend: str = "cpu") -> None:
+        if not 1 <= len(sensors) <= 2:
+            raise ValueError(f"ForceRuntime: {len(sensors)} sensors; expected 1 or 2 (one per finger)")
+        names = [s.name for s in sensors]
+        if len(set(names)) != len(names):
+            raise ValueError(f"ForceRuntime: sensor names {names} must be unique")
+        self.sensors = sensors
+        self.model = model
+        self.options = options or RuntimeOptions()
+        self.clock = clock
+        self.backend = backend
+        self.needs_depth = bool(getattr(model, "needs_depth", False))
+        if self.needs_depth:
+            factory = depth_factory or build_depth_stage
+            for s in sensors:
+                s.depth = factory()
+        self.stages = plan_stages(names, self.needs_depth, backend)
+        self.stats = RuntimeStats()
+        self._window = LatencyWindow(self.options.latency_window)
+        self._rgb = np.empty((len(sensors), *FRAME_SHAPE), np.uint8)
+        self._depth = np.empty((len(sensors), FRAME_SHAPE[0], FRAME_SHAPE[1], 1), np.uint8)
+
+    # -- public ---------------------------------------------------------------------------
+    @property
+    def finished(self) -> bool:
+        return not any(s.alive for s in self.sensors)
+
+    def latency(self) -> dict[str, dict[str, float]]:
+        """Rolling p50/p99 per stage, ms."""
+        return self._window.percentiles()
+
+    def step(self) -> list[ForceReading]:
+        """Process the newest frame of every live sensor; [] once every source has ended."""
+        out: list[ForceReading] = []
+        pending: list[_Pending] = []
+        for s in self.sensors:
+            if s.alive:
+                p = self._acquire(s, out)
+                if p is not None:
+                    pending.append(p)
+        if pending:
+            self._infer(pending, out)
+        for r in out:
+            self._count(r)
+        return out
+
+    def run(self, sinks: Iterable[ReadingSink] = (), max_frames: int | None = None,
+            on_reading: Callable[[ForceReading], None] | None = None) -> RuntimeStats:
+        """Step until every source ends (or ``max_frames`` readings), writing each reading to
+        every sink as it is made. Returns the stats with rolling latency percentiles."""
+        sinks = list(sinks)
+        while not self.finished:
+            for r in self.step():
+                for sink in sinks:
+                    sink.write(r)
+                if on_reading is not None:
+                    on_reading(r)
+            if max_frames is not None and self.stats.readings >= max_frames:
+                break
+        self.stats.latency_ms = self.latency()
+        return self.stats
+
+    def close(self) -> None:
+        for s in self.sensors:
+            s.source.close()
+
+    # -- internals ------------------------------------------------------------------------
+    def _ms(self, a: int, b: int) -> float:
+        return (b - a) / 1e6
+
+    def _reading(self, s: Sensor, tf: TimedFrame | None, flags: Flags, force: float = math.nan,
+                 latency: StageLatency | None = None, detail: str = "", area: int = 0, raw: float = math.nan) -> ForceReading:
+        return ForceReading(
+            sensor=s.name,
+            timestamp_ns=tf.timestamp_ns if tf is not None else self.clock(),
+            frame_index=tf.index if tf is not None else -1,
+            force_n=force, flags=flags, latency=latency or StageLatency(), raw_force_n=raw,
+            contact_area_px=area, truth_n=tf.truth_n if tf is not None else None, detail=detail,
+        )
+
+    def _finish(self, r: ForceReading, start_ns: int) -> ForceReading:
+        r.latency.total_ms = self._ms(start_ns, self.clock())
+        if r.latency.total_ms > self.options.deadline_ms:
+            r.flags |= Flags.LATE
+        self._window.add(r.latency)
+        return r
+
+    def _acquire(self, s: Sensor, out: list[ForceReading]) -> _Pending | None:
+        t0 = self.clock()
+        try:
+            tf = s.source.read()
+        except SourceError as exc:
+            s.alive, s.error = False, str(exc)
+            self.stats.source_errors += 1
+            out.append(self._reading(s, None, Flags.INVALID_INPUT, detail=f"source error: {exc}; sensor dropped"))
+            return None
+        t1 = self.clock()
+        if tf is None:
+            s.alive = False
+            return None
+        if self.options.report_stale:
+            for index, ts in tf.meta.get("superseded", ()):
+                out.append(ForceReading(s.name, ts, index, math.nan, Flags.STALE, detail=f"superseded by frame {tf.index}"))
+        start = tf.timestamp_ns if t0 <= tf.timestamp_ns <= t1 else t0
+        lat = StageLatency(source_ms=self._ms(start, t1))
+        try:
+            frame = check_frame(tf.frame, name=f"{s.name} frame {tf.index}", shape=FRAME_SHAPE)
+        except FrameError as exc:
+            out.append(self._finish(self._reading(s, tf, Flags.INVALID_INPUT, latency=lat, detail=str(exc)), start))
+            return None
+        problem = exposure_problem(frame)
+        if problem:
+            out.append(self._finish(self._reading(s, tf, Flags.INVALID_INPUT, latency=lat,
+                                                  detail=f"{s.name} frame {tf.index}: {problem} (LEDs off, lens covered?)"), start))
+            return None
+        g = s.gate.update(frame)
+        t2 = self.clock()
+        lat.gate_ms = self._ms(t1, t2)
+        if not g.contact:
+            detail = "" if g.background_ready else "learning background"
+            out.append(self._finish(self._reading(s, tf, Flags.NO_CONTACT, 0.0, lat, detail, g.area_px), start))
+            return None
+        p = _Pending(s, tf, frame, g, start, lat.source_ms, lat.gate_ms)
+        if s.depth is not None:
+            res = s.depth.process(frame, g.mask)
+            t3 = self.clock()
+            p.depth_ms = self._ms(t2, t3)
+            if not getattr(res, "ok", False):
+                lat.depth_ms = p.depth_ms
+                out.append(self._finish(self._reading(s, tf, Flags.INVALID_INPUT, latency=lat, area=g.area_px,
+                                                      detail=f"depth stage failed: {getattr(res, 'detail', '')}"), start))
+                return None
+            p.depth = res.depth
+        return p
+
+    def _infer(self, pending: list[_Pending], out: list[ForceReading]) -> None:
+        n = len(pending)
+        for k, p in enumerate(pending):
+            self._rgb[k] = p.frame
+            if p.depth is not None:
+                self._depth[k] = p.depth.reshape(self._depth.shape[1:])
+        t0 = self.clock()
+        error = ""
+        try:
+            forces = self.model.predict(self._rgb[:n], self._depth[:n] if self.needs_depth else None)
+        except Exception as exc:  # a backend failure must not stop the other readings
+            forces, error = np.full(n, np.nan, np.float32), f"inference failed: {type(exc).__name__}: {exc}"
+        inf_ms = self._ms(t0, self.clock())
+        self.stats.inferred += n
+        for p, raw in zip(pending, forces):
+            lat = StageLatency(p.source_ms, p.gate_ms, p.depth_ms, inf_ms)
+            flags, force, detail = self._judge(float(raw), p.gate, error)
+            r = self._reading(p.sensor, p.tf, flags, force, lat, detail, p.gate.area_px, float(raw))
+            out.append(self._finish(r, p.start_ns))
+
+    @staticmethod
+    def _judge(raw: float, g: GateResult, error: str) -> tuple[Flags, float, str]:
+        """Flags and honestly clamped force for one estimate."""
+        if not math.isfinite(raw):
+            return Flags.INVALID_INPUT, math.nan, error or f"model returned {raw}"
+        flags, force = Flags.NONE, raw
+        if raw < MIN_VALID_FORCE_N:
+            flags |= Flags.BELOW_RANGE
+            force = max(raw, 0.0)
+        if raw >= MAX_VALID_FORCE_N:
+            flags |= Flags.SATURATED
+            force = MAX_VALID_FORCE_N
+        detail = ""
+        if g.saturation_seen:
+            flags |= Flags.SATURATED
+            detail = "gel saturation seen in the frame"
+        return flags, force, detail
+
+    def _count(self, r: ForceReading) -> None:
+        st = self.stats
+        st.readings += 1
+        f = r.flags
+        if Flags.STALE in f:
+            st.stale += 1
+            return
+        st.processed += 1
+        if Flags.NO_CONTACT in f:
+            st.no_contact += 1
+        if Flags.LATE in f:
+            st.late += 1
+        if Flags.INVALID_INPUT in f:
+            st.invalid += 1

@@ -1,0 +1,243 @@
+"""Checkpoint + variant -> verified fp32 ONNX bundle (preprocessing inside the graph).
+
+The graph takes raw uint8 NHWC frames (``rgb``: N x 320 x 240 x 3 BGR, ``depth``:
+N x 320 x 240 x 1) with a dynamic batch and returns ``force_n`` (N,) float32 in newtons.
+The purely linear head is folded into one Gemm. Before anything is written, ONNX Runtime
+is compared with torch eager (unfolded model) on real frames; a difference above
+``parity_tol_n`` aborts and leaves no bundle.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import logging
+import os
+import time
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch import nn
+
+from tactile_force.edge.bundle import Bundle, Manifest, TensorSpec, write_bundle
+from tactile_force.edge.errors import TactileForceError
+
+from .calibration import CalibrationData, random_frames
+from .checkpoint import model_from_checkpoint
+from .graph import name_nodes
+from .macs import count_macs
+from .preprocess import ForceNet, network_hw, scale_factor
+from .zoo import VARIANT_INPUTS, ModelSpec, check_variant
+
+OUTPUT_NAME = "force_n"
+
+
+class ParityError(TactileForceError):
+    """ONNX Runtime and torch disagree by more than the tolerance; no bundle was written."""
+
+
+@dataclass
+class ExportOptions:
+    """How to export. variant/width/input_scale default to the checkpoint's metadata.
+
+    parity_data: an authors'-layout dataset or PNG folder (or loaded CalibrationData);
+    None checks on random frames and says so in the manifest.
+    """
+
+    variant: str | None = None
+    width: float | None = None
+    input_scale: float | None = None
+    parity_data: str | os.PathLike | CalibrationData | None = None
+    parity_tol_n: float = 1e-4
+    max_parity_frames: int = 32
+    opset: int = 18
+    fold_head: bool = True
+    name: str = ""
+    overwrite: bool = False
+    trained_on: str = ""
+
+
+@dataclass
+class ParityResult:
+    """ORT vs torch eager on the same frames (N)."""
+
+    max_abs_diff_n: float
+    mean_abs_diff_n: float
+    frames: int
+    source: str
+    tolerance_n: float
+
+    def as_dict(self) -> dict:
+        return {"max_abs_diff_n": self.max_abs_diff_n, "mean_abs_diff_n": self.mean_abs_diff_n,
+                "frames": self.frames, "data": self.source, "tolerance_n": self.tolerance_n,
+                "reference": "torch eager, unfolded head", "runtime": "onnxruntime CPUExecutionProvider"}
+
+
+class _Single(nn.Module):
+    def __init__(self, net: ForceNet) -> None:
+        super().__init__()
+        self.net = net
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self.net(x)
+
+
+class _Pair(nn.Module):
+    def __init__(self, net: ForceNet) -> None:
+        super().__init__()
+        self.net = net
+
+    def forward(self, rgb: torch.Tensor, depth: torch.Tensor) -> torch.Tensor:
+        return self.net(rgb, depth)
+
+
+def to_onnx(net: ForceNet, opset: int = 18) -> bytes:
+    """Export a ForceNet to ONNX bytes: uint8 NHWC inputs, dynamic batch, output 'force_n' (N,)."""
+    if opset < 17:
+        raise TactileForceError(f"opset {opset}: need >= 17")
+    names = list(net.input_names)
+    wrapper = (_Single if len(names) == 1 else _Pair)(net).eval()
+    args = tuple(torch.zeros((2, 320, 240, 3 if n == "rgb" else 1), dtype=torch.uint8) for n in names)
+    batch = torch.export.Dim("batch", min=1, max=4096)
+    dyn = tuple({0: batch} for _ in names)
+    with warnings.catch_warnings(), torch.no_grad():
+        warnings.simplefilter("ignore")
+        level = logging.getLogger("torch.onnx").level
+        logging.getLogger("torch.onnx").setLevel(logging.ERROR)
+        try:
+            prog = torch.onnx.export(wrapper, args, dynamo=True, input_names=names, output_names=[OUTPUT_NAME],
+                                     dynamic_shapes=dyn, opset_version=opset, verbose=False, optimize=True)
+        finally:
+            logging.getLogger("torch.onnx").setLevel(level)
+    model = prog.model_proto
+    name_nodes(model)
+    del model.metadata_props[:]
+    model.producer_name = "tactile-force"
+    return model.SerializeToString()
+
+
+def ort_session(model_bytes: bytes, threads: int = 1):
+    """A CPU onnxruntime session on model bytes."""
+    import onnxruntime as ort
+
+    so = ort.SessionOptions()
+    so.intra_op_num_threads = threads
+    so.inter_op_num_threads = 1
+    so.log_severity_level = 3
+    return ort.InferenceSession(model_bytes, so, providers=["CPUExecutionProvider"])
+
+
+def run_ort(session, data: CalibrationData, batch_size: int = 4) -> np.ndarray:
+    """Forces (N,) float64 from an ORT session over ``data`` in batches."""
+    return np.concatenate([np.asarray(session.run([OUTPUT_NAME], feed)[0], dtype=np.float64).reshape(-1)
+                           for feed in data.batches(batch_size)])
+
+
+@torch.no_grad()
+def run_torch(net: ForceNet, data: CalibrationData, batch_size: int = 4) -> np.ndarray:
+    """Forces (N,) float64 from torch eager over ``data`` in batches."""
+    out = []
+    for feed in data.batches(batch_size):
+        out.append(net(*(torch.from_numpy(np.ascontiguousarray(feed[n])) for n in net.input_names)).double().numpy())
+    return np.concatenate(out).reshape(-1)
+
+
+def check_parity(net: ForceNet, model_bytes: bytes, data: CalibrationData, tol_n: float) -> ParityResult:
+    """Compare ORT with torch eager; ParityError if max |diff| > tol_n or outputs are not finite."""
+    ref = run_torch(net, data)
+    got = run_ort(ort_session(model_bytes, threads=max(1, min(4, os.cpu_count() or 1))), data, batch_size=3)
+    if not (np.all(np.isfinite(ref)) and np.all(np.isfinite(got))):
+        raise ParityError("parity check: non-finite force (NaN/inf) from torch or ONNX Runtime; "
+                          "the checkpoint's weights are probably corrupted")
+    diff = np.abs(got - ref)
+    res = ParityResult(float(diff.max()), float(diff.mean()), len(data), data.source, tol_n)
+    if res.max_abs_diff_n > tol_n:
+        raise ParityError(f"parity check failed: ONNX Runtime differs from torch by up to {res.max_abs_diff_n:.3g} N "
+                          f"on {res.frames} frames ({data.source}); tolerance {tol_n:g} N. No bundle written.")
+    return res
+
+
+def _input_specs(variant: str) -> list[TensorSpec]:
+    specs = []
+    for n in VARIANT_INPUTS[variant]:
+        rgb = n == "rgb"
+        specs.append(TensorSpec(name=n, shape=[-1, 320, 240, 3 if rgb else 1], dtype="uint8", kind=n, layout="NHWC",
+                                colour_order="BGR" if rgb else "GRAY", scaling="x / 255 inside the graph"))
+    return specs
+
+
+def output_spec() -> TensorSpec:
+    return TensorSpec(name=OUTPUT_NAME, shape=[-1], dtype="float32", kind="force", layout="N", colour_order="",
+                      scaling="", unit="N")
+
+
+def preprocessing_steps(spec: ModelSpec) -> list[str]:
+    k = scale_factor(spec.input_scale)
+    steps = ["cast uint8 -> float32", "NHWC -> NCHW"]
+    if "rgb" in VARIANT_INPUTS[spec.variant]:
+        steps.append("BGR -> RGB (rgb input)")
+    steps.append("divide by 255")
+    if k > 1:
+        r, c = network_hw(spec.input_scale)
+        steps.append(f"{k}x{k} area average (AveragePool): 320x240 -> {r}x{c}")
+    return steps
+
+
+def _resolve(source, options: ExportOptions) -> tuple[nn.Module, ModelSpec, dict]:
+    if isinstance(source, ForceNet):
+        return source.model, source.spec, {"checkpoint": "in-memory ForceNet"}
+    if isinstance(source, nn.Module):
+        if not options.variant:
+            raise TactileForceError("export of an in-memory model needs ExportOptions.variant")
+        spec = ModelSpec(check_variant(options.variant), float(options.width or 1.0), float(options.input_scale or 1.0))
+        return source.eval(), spec, {"checkpoint": "in-memory module"}
+    path = Path(source)
+    model, spec, ckpt = model_from_checkpoint(path, options.variant, options.width, options.input_scale)
+    prov = {"checkpoint": path.name, "checkpoint_sha256": hashlib.sha256(path.read_bytes()).hexdigest(),
+            "checkpoint_format": "tactile-force" if ckpt.meta else "authors' (state_dict only)"}
+    for key in ("trained_on", "note", "epochs"):
+        if key in ckpt.meta:
+            prov[key] = ckpt.meta[key]
+    return model, spec, prov
+
+
+def export_bundle(source: str | os.PathLike | nn.Module, dest: str | os.PathLike,
+                  options: ExportOptions | None = None) -> Bundle:
+    """Export a checkpoint file (or in-memory model / ForceNet) to a verified fp32 bundle at ``dest``."""
+    options = options or ExportOptions()
+    t0 = time.perf_counter()
+    dest = Path(dest)
+    if dest.exists() and not options.overwrite:
+        raise TactileForceError(f"{dest}: already exists (use --force / overwrite=True to replace it)")
+    model, spec, prov = _resolve(source, options)
+    scale_factor(spec.input_scale)
+    model.eval()
+    if isinstance(options.parity_data, CalibrationData):
+        data = options.parity_data
+    elif options.parity_data is not None:
+        data = CalibrationData.from_path(options.parity_data, spec.variant, limit=options.max_parity_frames)
+    else:
+        data = random_frames(spec.variant)
+    eager = ForceNet(model, spec, folded=False).eval()
+    graph_net = ForceNet(model, spec, folded=options.fold_head).eval()
+    onnx_bytes = to_onnx(graph_net, options.opset)
+    parity = check_parity(eager, onnx_bytes, data, options.parity_tol_n)
+    import onnx
+
+    macs = count_macs(onnx.load_from_string(onnx_bytes))
+    r, c = network_hw(spec.input_scale)
+    manifest = Manifest(
+        variant=spec.variant, precision="fp32", inputs=_input_specs(spec.variant), output=output_spec(),
+        name=options.name or dest.name, preprocessing_in_graph=preprocessing_steps(spec),
+        architecture={"family": "resnet18", "width": spec.width, "input_scale": spec.input_scale,
+                      "network_input_hw": [r, c], "head_folded": options.fold_head, "gmacs": round(macs.gmacs, 4),
+                      "macs_by_op": macs.by_op, "params": int(sum(p.numel() for p in model.parameters())),
+                      "opset": options.opset},
+        parity=parity.as_dict(),
+        provenance={**prov, "trained_on": options.trained_on or prov.get("trained_on", "unknown"),
+                    "torch": torch.__version__, "exporter": "torch.onnx.export (dynamo)",
+                    "export_seconds": round(time.perf_counter() - t0, 2)},
+    )
+    return write_bundle(dest, onnx_bytes, manifest, overwrite=options.overwrite)

@@ -1,0 +1,224 @@
+"""DIGIT as a frame source: find it by serial, configure it, survive it disappearing.
+
+Frames come out in the package convention: HxWx3 uint8 BGR, portrait 320 rows x 240
+columns (the camera's landscape image transposed and flipped as digit-interface does;
+VGA is then halved). Settings follow digit-interface: QVGA 320x240 at 60/30 fps, VGA
+640x480 at 30/15 fps; LED intensity through the V4L2 zoom control as
+(r << 8) | (g << 4) | b, channels 0..15, firmware revision >= 200 only.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import time
+from dataclasses import dataclass
+from typing import Callable
+
+import cv2
+import numpy as np
+
+from ..edge.errors import SourceError, require
+from ..edge.frames import FRAME_COLS, FRAME_ROWS, FrameSource, TimedFrame
+from .discovery import AttachedDevice, discover, find_digit
+from .sysfs import UsbDeviceInfo
+from .usb_ids import DIGIT_RGB_INTENSITY_MIN_REVISION
+
+log = logging.getLogger(__name__)
+
+#: name -> (width, height, allowed fps), landscape as the camera streams.
+RESOLUTIONS: dict[str, tuple[int, int, tuple[int, ...]]] = {
+    "QVGA": (320, 240, (60, 30)),
+    "VGA": (640, 480, (30, 15)),
+}
+
+
+@dataclass
+class DigitOptions:
+    """How to open a DIGIT.
+
+    sensor: serial ('D12345'), index among attached DIGITs (0, 1, ...) or a /dev/videoN path;
+    intensity: LED (r, g, b), each 0..15, or None to keep the firmware's setting;
+    reconnect_attempts/backoff_s/backoff_max_s: after a failed read, reopen up to this many
+    times, waiting backoff_s, doubling, capped at backoff_max_s (seconds);
+    usb_reset: before the last attempt, reset the device through pyusb (needs the udev rule).
+    """
+
+    sensor: str | int = 0
+    resolution: str = "QVGA"
+    fps: int = 60
+    intensity: tuple[int, int, int] | None = None
+    reconnect_attempts: int = 6
+    backoff_s: float = 0.1
+    backoff_max_s: float = 2.0
+    usb_reset: bool = True
+
+    def validate(self) -> None:
+        if self.resolution not in RESOLUTIONS:
+            raise ValueError(f"DIGIT resolution {self.resolution!r}: expected one of {sorted(RESOLUTIONS)}")
+        rates = RESOLUTIONS[self.resolution][2]
+        if self.fps not in rates:
+            raise ValueError(f"DIGIT fps {self.fps} at {self.resolution}: expected one of {rates}")
+        if self.intensity is not None:
+            if len(self.intensity) != 3 or not all(isinstance(c, (int, np.integer)) and 0 <= c <= 15
+                                                   for c in self.intensity):
+                raise ValueError(f"DIGIT LED intensity {self.intensity!r}: expected (r, g, b) integers 0..15")
+        if self.reconnect_attempts < 0 or self.backoff_s < 0:
+            raise ValueError("DIGIT reconnect_attempts and backoff_s must be >= 0")
+
+
+def intensity_code(r: int, g: int, b: int) -> int:
+    """The zoom-control value that sets the DIGIT LEDs: (r << 8) | (g << 4) | b."""
+    return ((r & 0x0F) << 8) | ((g & 0x0F) << 4) | (b & 0x0F)
+
+
+def reset_usb_device(info: UsbDeviceInfo, find: Callable | None = None) -> None:
+    """USB port reset of the device at (bus, address) through pyusb; SourceError if impossible."""
+    if info.bus is None or info.address is None:
+        raise SourceError("USB reset: bus/address of the device unknown")
+    if find is None:
+        find = require("usb.core", "usb", "the DIGIT USB reset").find
+    try:
+        dev = find(custom_match=lambda d: d.bus == info.bus and d.address == info.address)
+        if dev is None:
+            raise SourceError(f"USB reset: no device at bus {info.bus:03d} address {info.address:03d} (unplugged?)")
+        dev.reset()
+    except SourceError:
+        raise
+    except Exception as exc:  # pyusb raises USBError/NoBackendError, both environment problems
+        raise SourceError(f"USB reset of bus {info.bus:03d} device {info.address:03d} failed ({exc}); "
+                          "write access to /dev/bus/usb needs the udev rule (tactile-force devices)") from None
+
+
+def _default_capture(node: str):
+    return cv2.VideoCapture(node, cv2.CAP_V4L2)
+
+
+class DigitSource(FrameSource):
+    """Frames from one DIGIT; reconnects with backoff when the stream dies.
+
+    ``open_capture(node)`` returns a cv2.VideoCapture-like object (tests pass a fake
+    camera); ``sys_root``/``dev_root`` locate sysfs and /dev (tests pass fake trees).
+    read() blocks while reconnecting, so give each sensor its own thread: the other
+    finger keeps being served. SourceError after the last failed attempt.
+    """
+
+    def __init__(self, options: DigitOptions | None = None, *, open_capture: Callable[[str], object] | None = None,
+                 sys_root: str | os.PathLike = "/sys", dev_root: str | os.PathLike = "/dev",
+                 sleep: Callable[[float], None] = time.sleep) -> None:
+        super().__init__()
+        self.options = options or DigitOptions()
+        self.options.validate()
+        self._open_capture = open_capture or _default_capture
+        self._roots = (sys_root, dev_root)
+        self._sleep = sleep
+        self.reconnects = 0
+        self.usb_resets = 0
+        self._cap = None
+        self._index = 0
+        w, h, _ = RESOLUTIONS[self.options.resolution]
+        self._portrait = np.empty((w, h, 3), np.uint8)  # transposed buffer, reused
+        self.device: AttachedDevice | None = None
+        self.node = self._locate()
+        self.name = (self.device.serial if self.device and self.device.serial else self.node) or "digit"
+        self._open(self.node)
+
+    # -- device lookup and configuration ------------------------------------------------
+    def _locate(self) -> str:
+        sensor = self.options.sensor
+        if isinstance(sensor, str) and sensor.startswith("/dev/"):
+            result = discover(*self._roots)
+            self.device = next((d for d in result.devices if sensor in d.info.video_nodes), None)
+            return sensor
+        self.device = find_digit(sensor, discover(*self._roots))
+        return self.device.video_node  # type: ignore[return-value]
+
+    def _open(self, node: str) -> None:
+        cap = self._open_capture(node)
+        if cap is None or not cap.isOpened():
+            raise SourceError(f"DIGIT {self.name if hasattr(self, 'name') else node}: cannot open {node} "
+                              "(busy in another program, unplugged, or no permission)")
+        w, h, _ = RESOLUTIONS[self.options.resolution]
+        cap.set(cv2.CAP_PROP_FRAME_WIDTH, w)
+        cap.set(cv2.CAP_PROP_FRAME_HEIGHT, h)
+        cap.set(cv2.CAP_PROP_FPS, self.options.fps)
+        if self.options.intensity is not None:
+            rev = self.device.firmware_revision if self.device else None
+            if rev is None or rev < DIGIT_RGB_INTENSITY_MIN_REVISION:
+                cap.release()
+                raise SourceError(f"DIGIT at {node}: firmware revision {rev if rev is not None else 'unknown'} "
+                                  f"cannot take an RGB LED intensity (needs >= {DIGIT_RGB_INTENSITY_MIN_REVISION}); "
+                                  "update the firmware or leave intensity unset")
+            cap.set(cv2.CAP_PROP_ZOOM, intensity_code(*self.options.intensity))
+        self._cap = cap
+
+    # -- reading ---------------------------------------------------------------------------
+    def _orient(self, raw: np.ndarray) -> np.ndarray:
+        """Landscape camera image -> portrait 320x240 BGR (transpose, flip rows, then resize)."""
+        if raw.ndim != 3 or raw.shape[2] != 3:
+            raise ValueError(f"camera image shape {raw.shape}")
+        if raw.shape[:2] == self._portrait.shape[1::-1]:
+            cv2.transpose(raw, self._portrait)
+            portrait = self._portrait
+        else:
+            portrait = cv2.transpose(raw)
+        out = cv2.flip(portrait, 0)
+        if out.shape[:2] != (FRAME_ROWS, FRAME_COLS):
+            out = cv2.resize(out, (FRAME_COLS, FRAME_ROWS), interpolation=cv2.INTER_AREA)
+        return out
+
+    def read(self) -> TimedFrame:
+        """Next frame (never None: a camera stream has no end); SourceError when it cannot come back."""
+        while True:
+            if self._cap is None:
+                raise SourceError(f"DIGIT {self.name}: source is closed")
+            ok, raw = self._cap.read()
+            ts = time.monotonic_ns()
+            if ok and raw is not None:
+                try:
+                    frame = self._orient(raw)
+                except ValueError as exc:
+                    self.stats.corrupt += 1
+                    log.warning("DIGIT %s: corrupt frame skipped (%s)", self.name, exc)
+                    continue
+                self.stats.frames += 1
+                self._index += 1
+                return TimedFrame(frame, ts, self._index - 1, meta={"sensor": self.name})
+            self.stats.dropped += 1
+            self._reconnect("read failed")
+
+    def _reconnect(self, reason: str) -> None:
+        self._release()
+        opts, delay, last = self.options, self.options.backoff_s, ""
+        log.warning("DIGIT %s: %s; reconnecting (%d attempts)", self.name, reason, opts.reconnect_attempts)
+        for attempt in range(1, opts.reconnect_attempts + 1):
+            self._sleep(delay)
+            delay = min(delay * 2, opts.backoff_max_s)
+            self.reconnects += 1
+            if attempt == opts.reconnect_attempts and opts.usb_reset and self.device is not None:
+                try:
+                    reset_usb_device(self.device.info)
+                    self.usb_resets += 1
+                except (SourceError, ImportError) as exc:
+                    last = str(exc)
+                    log.warning("DIGIT %s: %s", self.name, exc)
+            try:
+                if self.device is not None:  # the node number can change after a replug
+                    self.node = find_digit(self.device.serial or self.options.sensor, discover(*self._roots)).video_node
+                self._open(self.node)
+                log.warning("DIGIT %s: stream back after %d attempt(s)", self.name, attempt)
+                return
+            except SourceError as exc:
+                last = str(exc)
+        raise SourceError(f"DIGIT {self.name}: stream lost ({reason}) and {opts.reconnect_attempts} reconnect "
+                          f"attempts failed; last error: {last or 'none'}")
+
+    def _release(self) -> None:
+        if self._cap is not None:
+            try:
+                self._cap.release()
+            finally:
+                self._cap = None
+
+    def close(self) -> None:
+        self._release()

@@ -1,0 +1,73 @@
+"""calibrate-depth on real ball presses: circle detection, held-out angle error, cap depth."""
+
+import numpy as np
+import pytest
+
+from tactile_force.edge.cli import main as cli_main
+from tactile_force.edge.depth import NormalLUT, PoissonSolver, normals_to_gradients
+from tactile_force.edge.depth.calibration import (Circle, Press, cap_depth_px, detect_press_circle, evaluate_lut,
+                                                  fit_lut, sphere_normals)
+from tests.conftest import shared_data
+
+MM_PER_PX = 0.0295  # GelSight Mini (Taxim calibration data)
+BALL_MM = 2.0  # Taxim's calibration ball radius
+
+
+@pytest.fixture(scope="module")
+def gelsight():
+    z = np.load(shared_data("gelsight_mini_ball_presses.npz"))
+    presses = [Press(z["imgs"][i], Circle(float(c[0]), float(c[1]), float(r)), str(i))
+               for i, (c, r) in enumerate(zip(z["touch_center"], z["touch_radius"]))]
+    return z["f0"], presses
+
+
+def test_detected_circles_match_labels(gelsight):
+    bg, presses = gelsight
+    errs = []
+    for p in presses:
+        c = detect_press_circle(p.frame, bg)
+        assert c is not None
+        errs.append((np.hypot(c.cx - p.circle.cx, c.cy - p.circle.cy), abs(c.r - p.circle.r)))
+    e = np.array(errs)
+    assert np.median(e[:, 0]) < 12 and np.median(e[:, 1]) < 8, e
+    assert detect_press_circle(bg, bg) is None
+
+
+def test_heldout_angle_error_and_cap_depth(gelsight):
+    bg, presses = gelsight
+    R = BALL_MM / MM_PER_PX
+    train = [p for i, p in enumerate(presses) if i % 4 != 1]
+    test = [p for i, p in enumerate(presses) if i % 4 == 1]
+    lut = fit_lut(train, bg, R)
+    err = evaluate_lut(lut, test, R)
+    assert err.pixels > 10000 and err.mean_deg < 10.0, err
+    solver = PoissonSolver(bg.shape[:2], np.float64)
+    ratios = []
+    for p in test:
+        _, inside, _ = sphere_normals(bg.shape[:2], p.circle, R)
+        idx = np.flatnonzero(inside)
+        gx = np.zeros(bg.shape[:2])
+        gy = np.zeros(bg.shape[:2])
+        vx, vy, _ = normals_to_gradients(lut.normals(p.frame, idx))
+        gx.ravel()[idx] = vx
+        gy.ravel()[idx] = vy
+        ratios.append(solver.solve(gx, gy).max() / cap_depth_px(p.circle.r, R))
+    assert all(0.7 < r < 1.3 for r in ratios), ratios
+
+
+def test_cli_writes_a_loadable_calibration(tmp_path, capsys):
+    out = tmp_path / "gs.npz"
+    rc = cli_main(["calibrate-depth", str(shared_data("gelsight_mini_ball_presses.npz")), "--ball-radius-mm", "2.0",
+                   "--px-per-mm", str(1 / MM_PER_PX), "-o", str(out)])
+    assert rc == 0
+    text = capsys.readouterr().out
+    assert "held-out" in text
+    lut = NormalLUT.load(out)
+    assert lut.report["test_presses"] == 4 and lut.report["heldout_angle_deg"]["mean"] < 12
+    assert lut.background.shape == (480, 640, 3)
+
+
+def test_cli_reports_missing_background(tmp_path, capsys):
+    rc = cli_main(["calibrate-depth", str(shared_data("fots_digit", "ball_presses")), "--ball-radius-mm", "2.35",
+                   "--px-per-mm", "19.58", "-o", str(tmp_path / "x.npz")])
+    assert rc == 1 and "background" in capsys.readouterr().err
