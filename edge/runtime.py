@@ -6,7 +6,9 @@ the depth stage (depth bundles only) and one ``predict`` call for all sensors in
 
 - gate closed -> 0 N, ``no_contact``, the CNN is not run;
 - frames a source skipped because a newer one arrived -> ``stale`` readings (force nan);
-- a reading whose total latency exceeds ``deadline_ms`` -> ``late`` (still reported);
+- a reading whose total latency exceeds ``deadline_ms`` -> ``late`` (still reported); total
+  latency runs from the frame's arrival (or, for files and virtual frames, from when read()
+  returned it) to the finished reading; ``source_ms`` is the time read() took;
 - wrong shape/dtype, NaN, empty, all-dark/all-white frame, a failed depth stage -> ``invalid_input``;
 - estimate < 1 N -> ``below_range`` (clamped at 0); >= 15 N or gel saturation seen -> ``saturated``
   (clamped at 15 N, a lower bound);
@@ -32,6 +34,7 @@ from .gate import ContactGate, GateResult
 from .reading import MAX_VALID_FORCE_N, MIN_VALID_FORCE_N, Flags, ForceReading, StageLatency
 
 STAGES = ("source", "gate", "depth", "inference", "total")
+_ARRIVAL_WINDOW_NS = 1_000_000_000  # a frame stamp within 1 s before read() returned is its arrival time
 
 
 class ForceModel(Protocol):
@@ -114,10 +117,19 @@ class LatencyWindow:
 
 
 def build_depth_stage(options: dict | None = None):
-    """The depth stage for D/Dmod/RGBmod+D bundles (imported only for those)."""
+    """The depth stage for D/Dmod/RGBmod+D bundles (imported only for those).
+    options: DepthOptions fields; 'mapping' (the colour->normal .npz) is required."""
     from .depth import DepthOptions, DepthStage  # noqa: PLC0415 - lazy on purpose
+    from .errors import SceneError
 
-    return DepthStage(DepthOptions(**(options or {})))
+    options = dict(options or {})
+    if "mapping" not in options:
+        raise SceneError("[depth] 'mapping' is required for depth bundles: the colour->normal .npz "
+                         "(the paper MLP or a 'tactile-force calibrate-depth' result)")
+    try:
+        return DepthStage(DepthOptions(**options))
+    except (TypeError, ValueError) as exc:
+        raise SceneError(f"[depth]: {exc}") from None
 
 
 def plan_stages(sensors: Iterable[str], needs_depth: bool, backend: str = "cpu") -> list[str]:
@@ -164,7 +176,10 @@ class ForceRuntime:
         self.options = options or RuntimeOptions()
         self.clock = clock
         self.backend = backend
-        self.needs_depth = bool(getattr(model, "needs_depth", False))
+        nd = getattr(model, "needs_depth", None)
+        if nd is None:  # backends that only carry the bundle (OAK)
+            nd = model.bundle.manifest.needs_depth
+        self.needs_depth = bool(nd)
         if self.needs_depth:
             factory = depth_factory or build_depth_stage
             for s in sensors:
@@ -256,8 +271,12 @@ class ForceRuntime:
         if self.options.report_stale:
             for index, ts in tf.meta.get("superseded", ()):
                 out.append(ForceReading(s.name, ts, index, math.nan, Flags.STALE, detail=f"superseded by frame {tf.index}"))
-        start = tf.timestamp_ns if t0 <= tf.timestamp_ns <= t1 else t0
-        lat = StageLatency(source_ms=self._ms(start, t1))
+        # Latency counts from when the frame was there: its arrival stamp when that is on this
+        # clock (a camera frame that waited for us, a paced replay), else when read() returned
+        # (decoding a replay file or rendering a virtual frame is not sensor latency).
+        ts = tf.timestamp_ns
+        start = ts if t1 - _ARRIVAL_WINDOW_NS <= ts <= t1 else t1
+        lat = StageLatency(source_ms=self._ms(t0, t1))
         try:
             frame = check_frame(tf.frame, name=f"{s.name} frame {tf.index}", shape=FRAME_SHAPE)
         except FrameError as exc:

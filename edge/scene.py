@@ -39,13 +39,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .errors import BundleError, SceneError, SourceError
+from .errors import AcceleratorUnavailableError, BundleError, SceneError, SourceError
 from .gate import ContactGate, GateOptions
 
 SOURCES = ("camera", "replay", "video", "virtual")
 BACKENDS = ("cpu", "oak")
 OUTPUT_KINDS = ("stdout", "csv", "jsonl")
-_RUNTIME_KEYS = {"bundle", "backend", "fallback", "deadline_ms", "threads", "max_frames", "report_stale"}
+_RUNTIME_KEYS = {"bundle", "backend", "fallback", "deadline_ms", "threads", "max_frames", "report_stale",
+                 "oak_archive", "oak_device"}
 _SENSOR_KEYS = {"name", "source", "path", "device", "fps", "background", "gate", "seed", "n_grasps"}
 _OUTPUT_KEYS = {"kind", "path", "live", "fsync"}
 
@@ -89,6 +90,8 @@ class Scene:
     threads: int = 1
     max_frames: int = 0
     report_stale: bool = True
+    oak_archive: Path | None = None
+    oak_device: str | None = None
     depth: dict[str, Any] = field(default_factory=dict)
     outputs: list[OutputSpec] = field(default_factory=list)
 
@@ -157,11 +160,17 @@ def parse_scene(data: dict, path: Path) -> Scene:
         raise _err(w, f"'threads' = {threads}; expected an integer >= 1")
     max_frames = _typed(rt, "max_frames", (int,), w, 0, "an integer >= 0 (0 = until the sources end)")
     report_stale = _typed(rt, "report_stale", (bool,), w, True, "true or false")
+    oak_archive = _typed(rt, "oak_archive", (str,), w, None, "the NN Archive (.tar.xz) of the bundle for the OAK")
+    oak_device = _typed(rt, "oak_device", (str,), w, None, "an OAK device id")
+    if backend == "oak" and oak_archive is None and fallback != "cpu":
+        raise _err(w, "backend 'oak' needs 'oak_archive' (the bundle's NN Archive .tar.xz), or fallback = \"cpu\"")
 
     gate_base = _gate_options(data.get("gate", {}), GateOptions(), f"{where} [gate]")
     depth = data.get("depth", {})
     if not isinstance(depth, dict):
         raise _err(f"{where} [depth]", "expected a table of DepthOptions fields")
+    if "mapping" in depth:
+        depth = {**depth, "mapping": str(_path(base, str(depth["mapping"])))}
 
     raw_sensors = data.get("sensor", [])
     if not isinstance(raw_sensors, list) or not raw_sensors:
@@ -210,7 +219,7 @@ def parse_scene(data: dict, path: Path) -> Scene:
                                   _typed(t, "fsync", (bool,), wo, False, "true or false")))
     return Scene(path=path, sensors=sensors, bundles=bundles, backend=backend, fallback=fallback,
                  deadline_ms=deadline, threads=threads, max_frames=max_frames, report_stale=report_stale,
-                 depth=depth, outputs=outputs)
+                 oak_archive=_path(base, oak_archive) if oak_archive else None, oak_device=oak_device, depth=depth, outputs=outputs)
 
 
 def load_scene(path: str | os.PathLike) -> Scene:
@@ -266,8 +275,11 @@ def describe_scene(scene: Scene) -> list[str]:
         lines.append(f"  gate:{s.name:<8} threshold {s.gate.threshold:g}, on/off area {s.gate.on_area_frac:g}/"
                      f"{s.gate.off_area_frac:g}, downscale x{s.gate.downscale}, {bg}")
         if needs_depth:
-            lines.append(f"  depth:{s.name:<7} DepthStage (RGB -> normals -> gradients -> Poisson -> masked depth)")
-    be = scene.backend + (f" (fallback {scene.fallback})" if scene.fallback else "")
+            mapping = scene.depth.get("mapping", "MISSING: set [depth] mapping")
+            lines.append(f"  depth:{s.name:<7} DepthStage (RGB -> normals -> gradients -> Poisson -> masked depth; "
+                         f"mapping {mapping})")
+    be = scene.backend + (f" {scene.oak_archive}" if scene.backend == "oak" else "")
+    be += f" (fallback {scene.fallback})" if scene.fallback else ""
     lines.append(f"  inference    {be}, {scene.threads} thread(s), batch {len(scene.sensors)} when all in contact, "
                  f"deadline {scene.deadline_ms:g} ms")
     if not needs_depth:
@@ -306,10 +318,13 @@ def load_model(scene: Scene) -> tuple[object, str, list[str]]:
     notes: list[str] = []
     if scene.backend == "oak":
         try:
+            if scene.oak_archive is None:
+                raise AcceleratorUnavailableError("no 'oak_archive' given in [runtime]")
             from tactile_force.firmware_bridge import oak  # depthai is imported there, only now
 
-            return oak.OakForceModel(scene.bundles[0]), "oak", notes
-        except (ImportError, SourceError, OSError, RuntimeError, AttributeError) as exc:
+            opts = oak.OakOptions(archive=scene.oak_archive, device_id=scene.oak_device)
+            return oak.OakForceModel(scene.bundles[0], opts), "oak", notes
+        except (AcceleratorUnavailableError, ImportError, SourceError) as exc:
             if scene.fallback != "cpu":
                 raise SceneError(f"{scene.path}: backend 'oak' unavailable ({exc}); "
                                  "set fallback = \"cpu\" in [runtime] to run on the CPU instead") from None

@@ -21,7 +21,7 @@ Optional: the FOTS normal-to-colour MLP (a user-supplied .npz, never shipped).
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import cv2
 import numpy as np

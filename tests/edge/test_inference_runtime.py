@@ -265,3 +265,31 @@ def test_corrupt_replay_frames_are_counted_not_passed(tmp_path, aurova_dir):
     assert [tf.meta["path"].split("/")[-1] for tf in got] == ["frame_2.png", "frame_10.png"]
     assert src.stats.corrupt == 1 and src.stats.frames == 2
     assert all(tf.truth_n is None for tf in got)
+
+
+def test_depth_bundle_runs_the_real_depth_stage_with_the_gate_mask(make_bundle, aurova_dir):
+    from tactile_force.edge.runtime import build_depth_stage
+
+    mapping = shared_data("aurova_digit_depth_mlp.npz")
+    model = OnnxForceModel(make_bundle("mean_dmod", variant="dmod"))
+    rt = ForceRuntime([Sensor("s", ReplayFolderSource(aurova_dir), _gate())], model,
+                      depth_factory=lambda: build_depth_stage({"mapping": str(mapping)}))
+    assert rt.stages == ["source:s", "gate:s", "depth:s", "inference:cpu"]
+    readings = []
+    while not rt.finished:
+        readings += rt.step()
+    assert len(readings) == 11
+    ok = [r for r in readings if not r.flags & Flags.INVALID_INPUT]
+    assert ok, [r.detail for r in readings]
+    assert all(r.latency.depth_ms > 0 for r in ok)
+    # The depth image adds 5 N * mean(depth)/255 on top of the RGB mean: a pressed gel gives depth > 0.
+    img = cv2.imread(str(aurova_dir / "images" / "1524.png"))
+    assert readings[-1].raw_force_n > expected_force(img)
+
+
+def test_depth_bundle_without_mapping_is_a_clear_scene_error():
+    from tactile_force.edge import SceneError
+    from tactile_force.edge.runtime import build_depth_stage
+
+    with pytest.raises(SceneError, match="'mapping' is required"):
+        build_depth_stage({})

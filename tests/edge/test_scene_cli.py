@@ -84,11 +84,11 @@ def test_cpu_rgbmod_scene_imports_no_torch_or_device_libraries(tmp_path, rgb_bun
         import json, sys
         from tactile_force.edge.cli import main
         from tactile_force.edge.scene import build_scene, load_scene
-        rc = main(["run", "--scene", {str(p)!r}])
         built = build_scene(load_scene({str(p)!r}))
         depth_built = [s.depth is not None for s in built.runtime.sensors]
         stages = built.runtime.stages
         built.close()
+        rc = main(["run", "--scene", {str(p)!r}])
         heavy = [m for m in ("torch", "depthai", "usb", "hid", "onnx", "matplotlib") if m in sys.modules]
         print(json.dumps({{"rc": rc, "heavy": heavy, "depth_built": depth_built, "stages": stages}}))
         """)
@@ -116,7 +116,9 @@ def test_run_cli_in_process(tmp_path, rgb_bundle, aurova_dir, capsys):
 
 def test_oak_scene_without_oak_falls_back_or_fails_clearly(tmp_path, rgb_bundle, aurova_dir):
     p = _scene(tmp_path, rgb_bundle, aurova_dir, name="oak.toml")
-    text = p.read_text().replace("deadline_ms = 1000.0", 'deadline_ms = 1000.0\nbackend = "oak"\nfallback = "cpu"')
+    archive = tmp_path / "missing.tar.xz"
+    text = p.read_text().replace(
+        "deadline_ms = 1000.0", f'deadline_ms = 1000.0\nbackend = "oak"\nfallback = "cpu"\noak_archive = "{archive}"')
     p.write_text(text)
     built = build_scene(load_scene(p))
     try:
