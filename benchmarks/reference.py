@@ -155,16 +155,28 @@ def load_arrays(root: Path, with_depth: bool = False) -> Arrays:
     return arrays
 
 
+VIRTUAL_DEPTH_MAPPING = REPO / "edge" / "assets" / "virtual_digit_depth.npz"
+
+
 def depth_images(root: Path, rgb: np.ndarray) -> np.ndarray:
-    """Depth images of every frame, made by the runtime's own gate + depth stage (cached)."""
-    from tactile_force.edge.depth_pipeline import synthetic_depth_stage
+    """Depth images (N,320,240,1) uint8 of every frame, made as the runtime makes them:
+    the contact gate's mask + the depth stage with the virtual DIGIT's calibration
+    (benchmarks/virtual_depth_calibration.py). Cached next to the dataset."""
+    from tactile_force.edge import ContactGate, DepthOptions, DepthStage
+    from tactile_force.edge.synthetic import VirtualDigit, VirtualDigitOptions
 
     cache = root / "depth.npy"
     if cache.is_file():
         return np.load(cache)
-    log("computing depth images with the runtime's gate + depth stage")
-    make = synthetic_depth_stage()
-    out = np.stack([make(f) for f in rgb])[..., None]
+    log(f"computing depth images with the runtime's gate + depth stage ({VIRTUAL_DEPTH_MAPPING.name})")
+    background = VirtualDigit(VirtualDigitOptions()).render(None, 0.0, led_gain=(1.0, 1.0, 1.0)).frame
+    stage = DepthStage(DepthOptions(mapping=VIRTUAL_DEPTH_MAPPING))
+    out = np.zeros(rgb.shape[:3] + (1,), np.uint8)
+    for i, frame in enumerate(rgb):
+        gate = ContactGate()
+        gate.capture_background([background])
+        g = gate.update(frame)
+        out[i] = stage.process(frame, g.mask).depth
     np.save(cache, out)
     return out
 
@@ -227,7 +239,7 @@ def train(cfg: TrainConfig, data: Arrays, out_dir: Path) -> dict:
             loss.backward()
             opt.step()
             sched.step()
-            total += float(loss) * len(b)
+            total += float(loss.detach()) * len(b)
         p_va = predict(x_va)
         val = error_report(p_va, data.force[va]).overall
         history.append({"epoch": epoch + 1, "train_l1": total / len(tr), "val_re": val.re_mean, "val_mae": val.mae_mean})

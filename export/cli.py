@@ -101,6 +101,8 @@ def configure_quantize(p: argparse.ArgumentParser) -> None:
     p.add_argument("--method", default="minmax", choices=("minmax", "entropy", "percentile"),
                    help="activation range calibration (default minmax)")
     p.add_argument("--percentile", type=float, default=99.999, help="percentile for --method percentile")
+    p.add_argument("--bins", type=int, default=2048,
+                   help="histogram bins for entropy/percentile (default 2048; entropy gets slow with more)")
     p.add_argument("--per-tensor", action="store_true", help="one weight scale per tensor instead of per channel")
     p.add_argument("--keep-float", nargs="+", default=[], metavar="NODE",
                    help="node names to leave in float (see 'tactile-force bundle show --nodes')")
@@ -113,7 +115,7 @@ def main_quantize(args: argparse.Namespace) -> int:
     from .quantize import QuantizeOptions, quantize_bundle
 
     opts = QuantizeOptions(mode=args.mode, method=args.method, per_channel=not args.per_tensor,
-                           keep_float=list(args.keep_float), percentile=args.percentile,
+                           keep_float=list(args.keep_float), percentile=args.percentile, histogram_bins=args.bins,
                            min_calibration_frames=args.min_frames, max_calibration_frames=args.max_frames,
                            overwrite=args.force, show_progress=True)
     b = quantize_bundle(args.bundle, args.out, opts, calibration=args.calib, eval_data=args.eval)

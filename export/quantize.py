@@ -45,7 +45,8 @@ class QuantizeOptions:
 
     mode: 'int8-static' | 'int8-dynamic' | 'fp16'. method (int8-static): 'minmax' |
     'entropy' | 'percentile'. keep_float: extra node names to leave in float (the final
-    linear layer always is). min/max_calibration_frames bound how many frames are used.
+    linear layer always is). histogram_bins: histogram size for entropy/percentile (entropy's
+    threshold search time grows with it). min/max_calibration_frames bound the frames used.
     """
 
     mode: str = "int8-static"
@@ -53,6 +54,7 @@ class QuantizeOptions:
     per_channel: bool = True
     keep_float: list[str] = field(default_factory=list)
     percentile: float = 99.999
+    histogram_bins: int = 2048
     min_calibration_frames: int = 10
     max_calibration_frames: int = 500
     name: str = ""
@@ -87,6 +89,8 @@ def _check_options(o: QuantizeOptions) -> None:
         raise QuantizeError(f"quantization mode {o.mode!r}; expected one of {', '.join(MODES)}")
     if o.method not in METHODS:
         raise QuantizeError(f"calibration method {o.method!r}; expected one of {', '.join(METHODS)}")
+    if o.histogram_bins < 256:
+        raise QuantizeError(f"histogram_bins {o.histogram_bins}; expected >= 256 (entropy searches 128 quantized bins)")
     if not (0 < o.percentile <= 100):
         raise QuantizeError(f"percentile {o.percentile}; expected 0 < p <= 100")
 
@@ -120,16 +124,36 @@ def _static(pre_path: Path, out_path: Path, data: CalibrationData, exclude: list
     q = _ort_quant()
     method = {"minmax": q.CalibrationMethod.MinMax, "entropy": q.CalibrationMethod.Entropy,
               "percentile": q.CalibrationMethod.Percentile}[o.method]
-    extra = {"CalibPercentile": o.percentile} if o.method == "percentile" else {}
-    q.quantize_static(os.fspath(pre_path), os.fspath(out_path), FrameCalibrationReader(data, o.show_progress),
-                      quant_format=q.QuantFormat.QDQ, per_channel=o.per_channel, activation_type=q.QuantType.QUInt8,
-                      weight_type=q.QuantType.QInt8, nodes_to_exclude=exclude, calibrate_method=method,
-                      extra_options=extra)
+    common = dict(quant_format=q.QuantFormat.QDQ, per_channel=o.per_channel, activation_type=q.QuantType.QUInt8,
+                  weight_type=q.QuantType.QInt8, nodes_to_exclude=exclude, calibrate_method=method)
+    # quantize_static cannot set the histogram size, and its Entropy default (128 bins searched
+    # over 128 quantized bins) can never clip, i.e. it equals MinMax. So the ranges are computed
+    # here with options.histogram_bins bins and handed over through ORT's calibration cache.
+    hist = {"entropy": {"num_bins": o.histogram_bins, "num_quantized_bins": 128},
+            "percentile": {"num_bins": o.histogram_bins, "percentile": o.percentile}}.get(o.method, {})
+    import inspect
+
+    if hist and "calibration_cache_path" in inspect.signature(q.quantize_static).parameters:
+        from onnxruntime.quantization.calibrate import create_calibrator, save_tensors_data
+
+        calibrator = create_calibrator(pre_path, None, augmented_model_path=os.fspath(out_path.with_suffix(".aug.onnx")),
+                                       calibrate_method=method, extra_options=hist)
+        calibrator.collect_data(FrameCalibrationReader(data, o.show_progress))
+        cache = out_path.with_suffix(".ranges.json")
+        save_tensors_data(calibrator.compute_data(), cache)
+        q.quantize_static(os.fspath(pre_path), os.fspath(out_path), None, calibration_cache_path=os.fspath(cache),
+                          **common)
+    else:
+        extra = {"CalibPercentile": o.percentile} if o.method == "percentile" else {}
+        q.quantize_static(os.fspath(pre_path), os.fspath(out_path), FrameCalibrationReader(data, o.show_progress),
+                          extra_options=extra, **common)
     info = {"format": "QDQ", "activations": "uint8 (asymmetric)", "weights": "int8",
             "per_channel": o.per_channel, "method": o.method, "calibration_data": data.source,
             "calibration_frames": len(data)}
     if o.method == "percentile":
         info["percentile"] = o.percentile
+    if hist:
+        info["histogram_bins"] = hist["num_bins"]
     return info
 
 
