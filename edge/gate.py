@@ -142,18 +142,24 @@ class ContactGate:
             self._full_mask[:] = 0
             return GateResult(False, self._full_mask, 0, None, None, False, background_ready=False)
 
-        # Signed difference, minus the global per-channel shift (LED drift, exposure).
-        cv2.subtract(work, self._bg, dst=self._diff)
+        # Signed difference minus the global per-channel shift (LED drift, exposure), thresholded
+        # on the max over B, G, R: |d - shift| > t on some channel <=> d outside [shift - t,
+        # shift + t] on some channel, so one inRange + invert does subtract, abs, max and compare.
+        cv2.subtract(work, self._bg, dst=self._diff, dtype=cv2.CV_32F)
         shift = cv2.mean(self._diff)
-        cv2.subtract(self._diff, (shift[0], shift[1], shift[2], 0.0), dst=self._diff)
-        np.abs(self._diff, out=self._diff)
-        np.max(self._diff, axis=2, out=self._dmax)
-
-        cv2.compare(self._dmax, o.threshold, cv2.CMP_GT, dst=self._mask)
+        self._lo[:] = shift[:3]
+        self._hi[:] = shift[:3]
+        self._lo -= o.threshold
+        self._hi += o.threshold
+        cv2.inRange(self._diff, self._lo, self._hi, dst=self._mask)
+        cv2.bitwise_not(self._mask, dst=self._mask)
+        self._lo += o.threshold - o.saturation_threshold
+        self._hi -= o.threshold - o.saturation_threshold
+        cv2.inRange(self._diff, self._lo, self._hi, dst=self._strong)
+        strong = self._work_area - cv2.countNonZero(self._strong)
+        saturation_seen = strong >= o.saturation_area_frac * self._work_area
         cv2.morphologyEx(self._mask, cv2.MORPH_OPEN, self._kernel, dst=self._mask)
         cv2.morphologyEx(self._mask, cv2.MORPH_CLOSE, self._kernel_close, dst=self._mask)
-        strong = cv2.countNonZero(cv2.compare(self._dmax, o.saturation_threshold, cv2.CMP_GT, dst=self._strong))
-        saturation_seen = strong >= o.saturation_area_frac * self._work_area
 
         # Keep blobs big enough to be contact, filled (a ball's flat top looks like background).
         contours, _ = cv2.findContours(self._mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
@@ -162,9 +168,14 @@ class ContactGate:
         if keep:
             cv2.drawContours(self._mask, keep, -1, 255, thickness=cv2.FILLED)
 
-        if o.downscale > 1:
+        s = int(o.downscale)
+        if s > 1:
             cv2.resize(self._mask, (arr.shape[1], arr.shape[0]), dst=self._full_mask, interpolation=cv2.INTER_NEAREST)
-        area = cv2.countNonZero(self._full_mask)
+        # Area, centroid and box from the small mask when the factor divides the frame (the
+        # nearest-neighbour upscale then maps every small pixel to an s x s block: exact).
+        small = self._mask if self._exact else self._full_mask
+        k = s if self._exact else 1
+        area = cv2.countNonZero(small) * k * k
 
         frac = area / self._full_area
         if self._contact:
@@ -174,9 +185,11 @@ class ContactGate:
 
         centroid = bbox = None
         if area:
-            m = cv2.moments(self._full_mask, binaryImage=True)
-            centroid = (m["m10"] / m["m00"], m["m01"] / m["m00"])
-            bbox = tuple(int(v) for v in cv2.boundingRect(self._full_mask))
+            m = cv2.moments(small, binaryImage=True)
+            off = (k - 1) / 2.0
+            centroid = (k * m["m10"] / m["m00"] + off, k * m["m01"] / m["m00"] + off)
+            x, y, w, h = cv2.boundingRect(small)
+            bbox = (int(x * k), int(y * k), int(w * k), int(h * k))
         if not self._contact and o.refresh_rate > 0:
             cv2.accumulateWeighted(work, self._bg, o.refresh_rate)
         return GateResult(self._contact, self._full_mask, int(area), centroid, bbox, bool(saturation_seen))
@@ -200,9 +213,11 @@ class ContactGate:
         wh, ww = max(1, h // s), max(1, w // s)
         self._shape = tuple(shape)
         self._small = np.empty((wh, ww, 3), np.uint8)
-        self._work = np.empty((wh, ww, 3), np.float32)
+        self._work = np.empty((wh, ww, 3), np.uint8)
         self._diff = np.empty((wh, ww, 3), np.float32)
-        self._dmax = np.empty((wh, ww), np.float32)
+        self._lo = np.empty(3, np.float64)
+        self._hi = np.empty(3, np.float64)
+        self._exact = s == 1 or (h % s == 0 and w % s == 0)
         self._mask = np.empty((wh, ww), np.uint8)
         self._strong = np.empty((wh, ww), np.uint8)
         self._full_mask = self._mask if s == 1 else np.zeros((h, w), np.uint8)
@@ -214,14 +229,16 @@ class ContactGate:
         self._kernel_close = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * k + 1, 2 * k + 1))
 
     def _prepare(self, arr: np.ndarray) -> np.ndarray:
-        """Downscale + blur into the float32 working buffer (reused)."""
+        """Downscale (INTER_AREA) + blur into the uint8 working buffer (reused; uint8 keeps
+        OpenCV on its fixed-point fast paths)."""
         s = int(self.options.downscale)
         src = arr
         if s > 1:
             cv2.resize(arr, (self._small.shape[1], self._small.shape[0]), dst=self._small, interpolation=cv2.INTER_AREA)
             src = self._small
-        np.copyto(self._work, src, casting="unsafe")
         b = self.options.blur
         if b > 1:
-            cv2.GaussianBlur(self._work, (b, b), 0, dst=self._work)
+            cv2.GaussianBlur(src, (b, b), 0, dst=self._work)
+        else:
+            np.copyto(self._work, src)
         return self._work

@@ -56,16 +56,6 @@ class Preprocess(nn.Module):
         return self.pool(x / 255.0)
 
 
-def check_batch(x: torch.Tensor, name: str, kind: str) -> None:
-    """Raise naming ``name`` unless x is a (N, 320, 240, C) uint8 tensor."""
-    c = INPUT_CHANNELS[kind]
-    want = (FRAME_SHAPE[0], FRAME_SHAPE[1], c)
-    if x.dtype != torch.uint8 or x.dim() != 4 or tuple(x.shape[1:]) != want:
-        raise TactileForceError(
-            f"input '{name}': got {tuple(x.shape)} {x.dtype}; expected (N, {want[0]}, {want[1]}, {c}) uint8 "
-            + ("BGR frames" if kind == "rgb" else "depth images"))
-
-
 class ForceNet(nn.Module):
     """Preprocess + model: raw uint8 NHWC batches in, force in N out, shape (N,).
 

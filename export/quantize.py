@@ -12,7 +12,10 @@ manifest. Nothing is written unless every step succeeds.
 
 from __future__ import annotations
 
+import contextlib
 import copy
+import inspect
+import io
 import os
 import tempfile
 import time
@@ -30,6 +33,7 @@ from tactile_force.edge.progress import progress
 from .calibration import CalibrationData, CalibrationError
 from .graph import name_nodes, op_counts, producer_chain
 from .onnx_export import OUTPUT_NAME, ort_session, run_ort
+from .zoo import VARIANT_INPUTS
 
 MODES = ("int8-static", "int8-dynamic", "fp16")
 METHODS = ("minmax", "entropy", "percentile")
@@ -115,8 +119,6 @@ def _load_calibration(calibration, variant: str, o: QuantizeOptions, required: b
 
 
 def _input_names(variant: str) -> tuple[str, ...]:
-    from .zoo import VARIANT_INPUTS
-
     return VARIANT_INPUTS[variant]
 
 
@@ -131,8 +133,6 @@ def _static(pre_path: Path, out_path: Path, data: CalibrationData, exclude: list
     # here with options.histogram_bins bins and handed over through ORT's calibration cache.
     hist = {"entropy": {"num_bins": o.histogram_bins, "num_quantized_bins": 128},
             "percentile": {"num_bins": o.histogram_bins, "percentile": o.percentile}}.get(o.method, {})
-    import inspect
-
     if hist and "calibration_cache_path" in inspect.signature(q.quantize_static).parameters:
         from onnxruntime.quantization.calibrate import create_calibrator, save_tensors_data
 
@@ -140,7 +140,8 @@ def _static(pre_path: Path, out_path: Path, data: CalibrationData, exclude: list
                                        calibrate_method=method, extra_options=hist)
         calibrator.collect_data(FrameCalibrationReader(data, o.show_progress))
         cache = out_path.with_suffix(".ranges.json")
-        save_tensors_data(calibrator.compute_data(), cache)
+        with contextlib.redirect_stdout(io.StringIO()):  # ORT prints histogram chatter
+            save_tensors_data(calibrator.compute_data(), cache)
         q.quantize_static(os.fspath(pre_path), os.fspath(out_path), None, calibration_cache_path=os.fspath(cache),
                           **common)
     else:
