@@ -71,13 +71,13 @@ class TrainConfig:
 #: Configs trained by default. Full resolution (k=1, width 1) is ~2.8 GMAC a frame and
 #: takes hours per epoch on a 2-core CPU: it is benchmarked for latency only.
 CONFIGS: dict[str, TrainConfig] = {c.name: c for c in [
-    TrainConfig("rgbmod", 0.25, 4),
-    TrainConfig("rgbmod", 0.5, 4),
-    TrainConfig("rgbmod", 0.25, 2, epochs=15),
-    TrainConfig("rgbmod", 0.125, 8),
-    TrainConfig("d", 0.25, 4),
-    TrainConfig("dmod", 0.25, 4),
-    TrainConfig("rgbmod+d", 0.25, 4),
+    TrainConfig("rgbmod", 0.25, 4, epochs=30),  # the embedded default model
+    TrainConfig("d", 0.25, 4, epochs=15),
+    TrainConfig("dmod", 0.25, 4, epochs=15),
+    TrainConfig("rgbmod+d", 0.25, 4, epochs=15),
+    TrainConfig("rgbmod", 0.5, 4, epochs=15),
+    TrainConfig("rgbmod", 0.125, 8, epochs=15),
+    TrainConfig("rgbmod", 0.25, 2, epochs=8),
 ]}
 
 DEFAULT_MODEL = "rgbmod-w0.25-s4"

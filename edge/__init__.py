@@ -6,7 +6,8 @@ inference -> ForceReading. See design.md for the contracts.
 
 from .bundle import DEPTH_VARIANTS, VARIANTS, Bundle, Manifest, TensorSpec, load_bundle, write_bundle
 from .dataset import AuthorsDataset, AuthorsDatasetWriter, Sample
-from .errors import (BundleError, DatasetError, FrameError, MissingExtraError, SceneError, SourceError,
+from .errors import (AcceleratorUnavailableError, BundleError, DatasetError, FrameError, MissingExtraError, SceneError,
+                     SourceError,
                      TactileForceError)
 from .frames import FRAME_SHAPE, FrameSource, SourceStats, TimedFrame, check_frame
 from .metrics import ErrorReport, ErrorStats, error_report, error_stats, relative_error

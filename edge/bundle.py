@@ -176,6 +176,9 @@ def write_bundle(dest: str | os.PathLike, onnx_bytes: bytes, manifest: Manifest,
     manifest.sha256 = hashlib.sha256(onnx_bytes).hexdigest()
     manifest.onnx_file = "model.onnx"
     tmp = Path(tempfile.mkdtemp(prefix=f".{dest.name}.", suffix=".partial", dir=dest.parent))
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(tmp, 0o777 & ~umask)  # mkdtemp makes it 0700; a bundle is readable like any folder
     try:
         files = {"model.onnx": onnx_bytes, "model.json": manifest.to_json().encode()}
         files.update(extra_files or {})

@@ -68,8 +68,8 @@ class OnnxForceModel:
             raise BundleError(f"{self.bundle.onnx_path}: ONNX Runtime cannot load the model ({exc})") from None
         graph_inputs = {i.name: i for i in self.session.get_inputs()}
         by_kind = {s.kind: s for s in m.inputs}
-        if "rgb" not in by_kind:
-            raise BundleError(f"{self.bundle.path}: manifest declares no 'rgb' input")
+        if not by_kind.keys() & {"rgb", "depth"}:
+            raise BundleError(f"{self.bundle.path}: manifest declares neither an 'rgb' nor a 'depth' input")
         for spec in m.inputs:
             gi = graph_inputs.get(spec.name)
             if gi is None:
@@ -77,7 +77,7 @@ class OnnxForceModel:
                                   f"(graph inputs: {sorted(graph_inputs)}); model and manifest do not match")
             if gi.type != "tensor(uint8)":
                 raise BundleError(f"{self.bundle.path}: graph input {spec.name!r} is {gi.type}; the bundle contract is uint8")
-        self.rgb_name = by_kind["rgb"].name
+        self.rgb_name = by_kind["rgb"].name if "rgb" in by_kind else None  # None: D / Dmod (depth only)
         self.depth_name = by_kind["depth"].name if "depth" in by_kind else None
         if m.needs_depth and self.depth_name is None:
             raise BundleError(f"{self.bundle.path}: variant {m.variant!r} needs a 'depth' input but the manifest has none")
@@ -85,7 +85,7 @@ class OnnxForceModel:
         if self.output_name not in {o.name for o in self.session.get_outputs()}:
             raise BundleError(f"{self.bundle.path}: manifest output {self.output_name!r} is not a graph output")
         # Allocated once; predict copies into the first N rows.
-        self._rgb = np.zeros((MAX_BATCH, *RGB_SHAPE), np.uint8)
+        self._rgb = np.zeros((MAX_BATCH, *RGB_SHAPE), np.uint8) if self.rgb_name else None
         self._depth = np.zeros((MAX_BATCH, *DEPTH_SHAPE), np.uint8) if self.depth_name else None
         self._feeds = [self._feed(n) for n in range(1, MAX_BATCH + 1)]
         for _ in range(warmup):
@@ -97,7 +97,7 @@ class OnnxForceModel:
         return self.depth_name is not None
 
     def _feed(self, n: int) -> dict[str, np.ndarray]:
-        feed = {self.rgb_name: self._rgb[:n]}
+        feed = {self.rgb_name: self._rgb[:n]} if self._rgb is not None else {}
         if self._depth is not None:
             feed[self.depth_name] = self._depth[:n]
         return feed
@@ -110,11 +110,15 @@ class OnnxForceModel:
                               f"of {n}; expected one force (N) per frame")
         return out
 
-    def predict(self, rgb: np.ndarray, depth: np.ndarray | None = None) -> np.ndarray:
+    def predict(self, rgb: np.ndarray | None, depth: np.ndarray | None = None) -> np.ndarray:
         """Forces in newtons, (N,) float32, for rgb (N,320,240,3) uint8 BGR and, for
-        depth variants, depth (N,320,240,1) uint8. N is 1 or 2."""
-        rgb = _check_batch(rgb, "rgb", RGB_SHAPE, MAX_BATCH)
-        n = rgb.shape[0]
+        depth variants, depth (N,320,240,1) uint8. N is 1 or 2. D / Dmod bundles read only
+        the depth images (rgb may then be None)."""
+        if rgb is None and self._rgb is None and depth is not None:
+            n = _check_batch(depth, "depth", DEPTH_SHAPE, MAX_BATCH).shape[0]
+        else:
+            rgb = _check_batch(rgb, "rgb", RGB_SHAPE, MAX_BATCH)
+            n = rgb.shape[0]
         if self._depth is not None:
             if depth is None:
                 raise FrameError(f"depth: this {self.bundle.variant} bundle needs a depth image (N,320,240,1) uint8")
@@ -122,7 +126,8 @@ class OnnxForceModel:
             if depth.shape[0] != n:
                 raise FrameError(f"depth: batch {depth.shape[0]} but rgb batch {n}; expected one depth image per frame")
             self._depth[:n] = depth
-        self._rgb[:n] = rgb
+        if self._rgb is not None:
+            self._rgb[:n] = rgb
         return self._run(n).copy()
 
 

@@ -104,17 +104,17 @@ def main_record(args: argparse.Namespace) -> int:
         digit_options.validate()
     except ValueError as exc:
         raise SourceError(str(exc)) from None
-    scale = HidScale.open(_scale_options(args.scale))
-    try:
-        if args.tare:
-            print(f"tare: {scale.tare():.3f} N taken as zero")
-        with DigitSource(digit_options) as source:
+    with DigitSource(digit_options) as source:
+        scale = HidScale.open(_scale_options(args.scale))
+        try:
+            if args.tare:
+                print(f"tare: {scale.tare():.3f} N taken as zero")
             print(f"recording DIGIT {source.name} ({source.node}) with scale {scale.name} into {args.out}; "
                   "Ctrl-C to stop")
             result = record(source, scale, RecordOptions(out=args.out, max_samples=args.max, every_n=args.every,
                                                          stable_only=args.stable_only, min_force_n=args.min_force))
-    finally:
-        scale.close()
+        finally:
+            scale.close()
     if result.removed_unlabelled:
         print(f"removed {len(result.removed_unlabelled)} unlabelled frame(s) left by an earlier interrupted run")
     ids = result.written

@@ -20,11 +20,15 @@ import numpy as np
 
 from ..edge.errors import SourceError, require
 from ..edge.frames import FRAME_COLS, FRAME_ROWS, FrameSource, TimedFrame
+from ..edge.sources import orient_digit
 from .discovery import AttachedDevice, discover, find_digit
 from .sysfs import UsbDeviceInfo
 from .usb_ids import DIGIT_RGB_INTENSITY_MIN_REVISION
 
 log = logging.getLogger(__name__)
+
+#: This many undecodable frames in a row count as a dead stream (reconnect).
+MAX_CORRUPT_IN_ROW = 30
 
 #: name -> (width, height, allowed fps), landscape as the camera streams.
 RESOLUTIONS: dict[str, tuple[int, int, tuple[int, ...]]] = {
@@ -114,10 +118,9 @@ class DigitSource(FrameSource):
         self._sleep = sleep
         self.reconnects = 0
         self.usb_resets = 0
+        self._attempts = 0  # reconnect attempts since the last good frame
         self._cap = None
         self._index = 0
-        w, h, _ = RESOLUTIONS[self.options.resolution]
-        self._portrait = np.empty((w, h, 3), np.uint8)  # transposed buffer, reused
         self.device: AttachedDevice | None = None
         self.node = self._locate()
         self.name = (self.device.serial if self.device and self.device.serial else self.node) or "digit"
@@ -154,21 +157,17 @@ class DigitSource(FrameSource):
 
     # -- reading ---------------------------------------------------------------------------
     def _orient(self, raw: np.ndarray) -> np.ndarray:
-        """Landscape camera image -> portrait 320x240 BGR (transpose, flip rows, then resize)."""
-        if raw.ndim != 3 or raw.shape[2] != 3:
-            raise ValueError(f"camera image shape {raw.shape}")
-        if raw.shape[:2] == self._portrait.shape[1::-1]:
-            cv2.transpose(raw, self._portrait)
-            portrait = self._portrait
-        else:
-            portrait = cv2.transpose(raw)
-        out = cv2.flip(portrait, 0)
+        """Landscape camera image -> portrait 320x240 BGR (edge.sources.orient_digit, then halve VGA)."""
+        if raw.ndim != 3 or raw.shape[2] != 3 or raw.size == 0 or raw.shape[0] > raw.shape[1]:
+            raise ValueError(f"camera image shape {raw.shape}, expected landscape H x W x 3")
+        out = orient_digit(raw)
         if out.shape[:2] != (FRAME_ROWS, FRAME_COLS):
             out = cv2.resize(out, (FRAME_COLS, FRAME_ROWS), interpolation=cv2.INTER_AREA)
         return out
 
     def read(self) -> TimedFrame:
         """Next frame (never None: a camera stream has no end); SourceError when it cannot come back."""
+        corrupt_in_row = 0
         while True:
             if self._cap is None:
                 raise SourceError(f"DIGIT {self.name}: source is closed")
@@ -179,24 +178,32 @@ class DigitSource(FrameSource):
                     frame = self._orient(raw)
                 except ValueError as exc:
                     self.stats.corrupt += 1
+                    corrupt_in_row += 1
                     log.warning("DIGIT %s: corrupt frame skipped (%s)", self.name, exc)
+                    if corrupt_in_row >= MAX_CORRUPT_IN_ROW:
+                        corrupt_in_row = 0
+                        self._reconnect(f"{MAX_CORRUPT_IN_ROW} corrupt frames in a row")
                     continue
                 self.stats.frames += 1
+                self._attempts = 0
                 self._index += 1
                 return TimedFrame(frame, ts, self._index - 1, meta={"sensor": self.name})
             self.stats.dropped += 1
             self._reconnect("read failed")
 
     def _reconnect(self, reason: str) -> None:
+        """Reopen the stream with backoff. Attempts count until a good frame arrives, so a
+        device that opens but never delivers still ends in SourceError."""
         self._release()
-        opts, delay, last = self.options, self.options.backoff_s, ""
-        log.warning("DIGIT %s: %s; reconnecting (%d attempts)", self.name, reason, opts.reconnect_attempts)
-        for attempt in range(1, opts.reconnect_attempts + 1):
+        opts, last = self.options, ""
+        log.warning("DIGIT %s: %s; reconnecting", self.name, reason)
+        while self._attempts < opts.reconnect_attempts:
+            self._attempts += 1
+            delay = min(opts.backoff_s * 2 ** (self._attempts - 1), opts.backoff_max_s)
             self._sleep(delay)
-            delay = min(delay * 2, opts.backoff_max_s)
             self.reconnects += 1
-            if attempt == opts.reconnect_attempts and opts.usb_reset and self.device is not None:
-                try:
+            if self._attempts == opts.reconnect_attempts and opts.usb_reset and self.device is not None:
+                try:  # last resort
                     reset_usb_device(self.device.info)
                     self.usb_resets += 1
                 except (SourceError, ImportError) as exc:
@@ -206,12 +213,12 @@ class DigitSource(FrameSource):
                 if self.device is not None:  # the node number can change after a replug
                     self.node = find_digit(self.device.serial or self.options.sensor, discover(*self._roots)).video_node
                 self._open(self.node)
-                log.warning("DIGIT %s: stream back after %d attempt(s)", self.name, attempt)
+                log.warning("DIGIT %s: reopened after attempt %d", self.name, self._attempts)
                 return
             except SourceError as exc:
                 last = str(exc)
         raise SourceError(f"DIGIT {self.name}: stream lost ({reason}) and {opts.reconnect_attempts} reconnect "
-                          f"attempts failed; last error: {last or 'none'}")
+                          f"attempts failed; last error: {last or 'reopened but no good frame'}")
 
     def _release(self) -> None:
         if self._cap is not None:

@@ -96,19 +96,25 @@ class OakForceModel:
         self.device_id = infos[0].getDeviceId()
         self.last_inference_ms = 0.0
 
+    @property
+    def needs_depth(self) -> bool:
+        """True for depth variants: the runtime must run its depth stage and pass ``depth``."""
+        return self.bundle.manifest.needs_depth
+
     def _check(self, batch: np.ndarray | None, name: str, depth: bool) -> np.ndarray:
         if batch is None:
             raise FrameError(f"{name}: required by variant {self.bundle.variant!r}, got None")
         if not isinstance(batch, np.ndarray) or batch.dtype != np.uint8:
             raise FrameError(f"{name}: expected a uint8 numpy array, got "
                              f"{getattr(batch, 'dtype', type(batch).__name__)}")
-        want = FRAME_SHAPE[:2] if depth else FRAME_SHAPE
+        want = (*FRAME_SHAPE[:2], 1) if depth else FRAME_SHAPE
         if batch.ndim != len(want) + 1 or batch.shape[1:] != want:
             raise FrameError(f"{name}: shape {batch.shape}; expected (N, {', '.join(map(str, want))})")
         return batch
 
     def predict(self, rgb: np.ndarray | None, depth: np.ndarray | None = None) -> np.ndarray:
-        """Forces in N, shape (N,) float32, for rgb (N,320,240,3) uint8 BGR or depth (N,320,240) uint8."""
+        """Forces in N, shape (N,) float32, for rgb (N,320,240,3) uint8 BGR or, for d/dmod
+        bundles, depth (N,320,240,1) uint8 (rgb may then be None), as the CPU backend."""
         if self._spec.kind == "depth":
             batch = self._check(depth, "depth", True)
         else:
@@ -117,7 +123,7 @@ class OakForceModel:
         timeout = timedelta(seconds=self.options.timeout_s)
         start = time.perf_counter()
         for i, img in enumerate(batch):
-            self._frame.setCvFrame(img, self._type)
+            self._frame.setCvFrame(img[..., 0] if img.shape[-1] == 1 else img, self._type)
             self._frame.setSequenceNum(i)
             self._in.send(self._frame)
             msg = self._out.get(timeout)

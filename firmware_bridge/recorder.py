@@ -74,7 +74,7 @@ def prepare_output(root: Path) -> tuple[int, list[int]]:
     for n in removed:
         (images / f"{n}.png").unlink(missing_ok=True)
         (depth / f"depth_img_{n}.png").unlink(missing_ok=True)
-    used = img_ids | force_ids
+    used = force_ids | (img_ids - set(removed))
     return (max(used) + 1 if used else 0), removed
 
 

@@ -4,6 +4,7 @@ import cv2
 import numpy as np
 import pytest
 
+from tactile_force.edge.dataset import AuthorsDataset
 from tactile_force.edge.errors import SourceError
 from tactile_force.firmware_bridge import DigitOptions, DigitSource, intensity_code, reset_usb_device
 from tactile_force.firmware_bridge.sysfs import UsbDeviceInfo
@@ -13,7 +14,8 @@ from .fakes import FakeCamera, FakeSysfsDevice, FakeUsbDevice, fake_find, make_f
 
 @pytest.fixture
 def portraits(aurova_dir):
-    return [cv2.imread(str(aurova_dir / "images" / f"{n}.png")) for n in range(3)]
+    data = AuthorsDataset(aurova_dir)
+    return [data[i].frame for i in range(3)]
 
 
 def landscape(portrait):
@@ -71,7 +73,7 @@ def test_vga_is_halved_to_the_frame_contract(tree, portraits):
 
 
 def test_old_firmware_refuses_rgb_intensity(tree, portraits):
-    with pytest.raises(SourceError, match="revision 150 .* needs >= 200"):
+    with pytest.raises(SourceError, match=r"revision 150 .*needs >= 200"):
         DigitSource(DigitOptions("D00150", intensity=(1, 1, 1)), open_capture=Cameras([landscape(portraits[0])], []),
                     sys_root=tree[0], dev_root=tree[1])
 
@@ -113,3 +115,14 @@ def test_usb_reset_targets_bus_and_address():
     assert [d.resets for d in devs] == [0, 1]
     with pytest.raises(SourceError, match="no device at bus 002"):
         reset_usb_device(UsbDeviceInfo(0x2833, 0x0209, 0x200, "D1", bus=2, address=5), find=fake_find(devs))
+
+
+def test_endless_corrupt_frames_count_as_a_dead_stream(tree, portraits):
+    empty = np.zeros((0, 0), np.uint8)
+    cams = Cameras([empty], [(None, True), (None, True)])
+    cams.frames_by_call = None
+    src = DigitSource(DigitOptions("D20001", reconnect_attempts=1, backoff_s=0.0, usb_reset=False),
+                      open_capture=cams, sys_root=tree[0], dev_root=tree[1], sleep=lambda s: None)
+    with pytest.raises(SourceError, match="corrupt frames"):
+        src.read()
+    assert src.stats.corrupt > 0 and src.reconnects == 1
