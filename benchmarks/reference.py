@@ -60,8 +60,7 @@ class TrainConfig:
 
     @property
     def name(self) -> str:
-        v = self.variant.replace("+", "p")
-        return f"{v}-w{self.width:g}-s{self.k}"
+        return f"{self.variant}-w{self.width:g}-s{self.k}"
 
     @property
     def input_scale(self) -> float:

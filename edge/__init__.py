@@ -4,7 +4,7 @@ Data flow: frame source -> contact gate -> [depth stage for D/Dmod/RGBmod+D] -> 
 inference -> ForceReading. See design.md for the contracts.
 """
 
-from .bundle import DEPTH_VARIANTS, VARIANTS, Bundle, Manifest, TensorSpec, load_bundle, write_bundle
+from .bundle import DEPTH_VARIANTS, VARIANTS, Bundle, Manifest, TensorSpec, load_bundle, sha256_file, write_bundle
 from .dataset import AuthorsDataset, AuthorsDatasetWriter, Sample
 from .errors import (AcceleratorUnavailableError, BundleError, DatasetError, FrameError, MissingExtraError, SceneError,
                      SourceError,
