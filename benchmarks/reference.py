@@ -296,7 +296,23 @@ def make_bundles(cfg: TrainConfig, data: Arrays, out_dir: Path, force: bool = Fa
                         QuantizeOptions(mode="int8-static", method="minmax", name=f"{cfg.name}-int8", overwrite=True),
                         calibration=calibration_data(cfg, data, "train", 200),
                         eval_data=calibration_data(cfg, data, "test"))
+    if cfg.variant != "rgbmod":
+        for path in paths.values():
+            record_depth_mapping(path)
     return paths
+
+
+def record_depth_mapping(bundle_dir: Path) -> None:
+    """Write into a depth bundle's manifest which depth mapping made its training images,
+    so a scene without a [depth] table builds the same depth stage (idempotent)."""
+    from tactile_force.edge.bundle import load_bundle, sha256_file, write_bundle
+
+    b = load_bundle(bundle_dir)
+    want = {"mapping": f"package:{VIRTUAL_DEPTH_MAPPING.name}", "mode": "exact",
+            "mapping_sha256": sha256_file(VIRTUAL_DEPTH_MAPPING), "mask": "contact gate (GateOptions defaults)"}
+    if b.manifest.architecture.get("depth") != want:
+        b.manifest.architecture["depth"] = want
+        write_bundle(bundle_dir, b.onnx_path.read_bytes(), b.manifest, overwrite=True)
 
 
 DEFAULT_NOTE = ("Trained on SYNTHETIC frames from the package's virtual DIGIT only. It runs the demo and "

@@ -116,16 +116,36 @@ class LatencyWindow:
         return {s: {"p50": float(p[0, k]), "p99": float(p[1, k])} for k, s in enumerate(STAGES)}
 
 
-def build_depth_stage(options: dict | None = None):
-    """The depth stage for D/Dmod/RGBmod+D bundles (imported only for those).
-    options: DepthOptions fields; 'mapping' (the colour->normal .npz) is required."""
-    from .depth import DepthOptions, DepthStage  # noqa: PLC0415 - lazy on purpose
+def depth_options_for(options: dict | None = None, manifest=None) -> dict:
+    """DepthOptions fields for a depth bundle: the scene's ``[depth]`` table, else what the
+    bundle's manifest recorded at training time (``architecture.depth``). A mapping named
+    ``package:FILE`` is a file shipped in tactile_force/edge/assets (e.g. the virtual
+    DIGIT's calibration that the reference depth models were trained with)."""
     from .errors import SceneError
 
     options = dict(options or {})
+    recorded = dict(((manifest.architecture or {}).get("depth") or {}) if manifest is not None else {})
+    for key, value in recorded.items():
+        if key in ("mapping", "mode") and key not in options:
+            options[key] = value
     if "mapping" not in options:
         raise SceneError("[depth] 'mapping' is required for depth bundles: the colour->normal .npz "
                          "(the paper MLP or a 'tactile-force calibrate-depth' result)")
+    mapping = str(options["mapping"])
+    if mapping.startswith("package:"):
+        from pathlib import Path
+
+        options["mapping"] = str(Path(__file__).resolve().parent / "assets" / mapping.split(":", 1)[1])
+    return options
+
+
+def build_depth_stage(options: dict | None = None, manifest=None):
+    """The depth stage for D/Dmod/RGBmod+D bundles (imported only for those); options and
+    manifest as in :func:`depth_options_for`."""
+    from .depth import DepthOptions, DepthStage  # noqa: PLC0415 - lazy on purpose
+    from .errors import SceneError
+
+    options = depth_options_for(options, manifest)
     try:
         return DepthStage(DepthOptions(**options))
     except (TypeError, ValueError) as exc:
@@ -181,7 +201,9 @@ class ForceRuntime:
             nd = model.bundle.manifest.needs_depth
         self.needs_depth = bool(nd)
         if self.needs_depth:
-            factory = depth_factory or build_depth_stage
+            bundle = getattr(model, "bundle", None)
+            manifest = bundle.manifest if bundle is not None else None
+            factory = depth_factory or (lambda: build_depth_stage(None, manifest))
             for s in sensors:
                 s.depth = factory()
         self.stages = plan_stages(names, self.needs_depth, backend)

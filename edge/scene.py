@@ -275,7 +275,7 @@ def describe_scene(scene: Scene) -> list[str]:
         lines.append(f"  gate:{s.name:<8} threshold {s.gate.threshold:g}, on/off area {s.gate.on_area_frac:g}/"
                      f"{s.gate.off_area_frac:g}, downscale x{s.gate.downscale}, {bg}")
         if needs_depth:
-            mapping = scene.depth.get("mapping", "MISSING: set [depth] mapping")
+            mapping = scene.depth.get("mapping", "from the bundle manifest, else MISSING: set [depth] mapping")
             lines.append(f"  depth:{s.name:<7} DepthStage (RGB -> normals -> gradients -> Poisson -> masked depth; "
                          f"mapping {mapping})")
     be = scene.backend + (f" {scene.oak_archive}" if scene.backend == "oak" else "")
@@ -384,6 +384,7 @@ def build_scene(scene: Scene, clock=None) -> BuiltScene:
         raise
     opts = RuntimeOptions(deadline_ms=scene.deadline_ms, threads=scene.threads, report_stale=scene.report_stale)
     runtime = ForceRuntime(sensors, model, opts, clock=clock, backend=backend,
-                           depth_factory=lambda: build_depth_stage(scene.depth))
+                           depth_factory=lambda: build_depth_stage(
+                               scene.depth, getattr(getattr(model, "bundle", None), "manifest", None)))
     sinks = open_outputs(scene, p99_ms=lambda: runtime.latency()["total"]["p99"])
     return BuiltScene(runtime, sinks, notes)
