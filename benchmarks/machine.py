@@ -101,4 +101,4 @@ def header(title: str, command: str, machine: Machine, notes: str = "") -> str:
            f"While measuring: {machine.background_load}.", ""]
     if notes:
         out += [notes, ""]
-    return "\n".join(out)
+    return "\n".join(out) + "\n"

@@ -19,7 +19,7 @@ from .inference import LadderChoice, OnnxForceModel, choose_bundle
 from .outputs import CsvWriter, JsonlWriter, StdoutWriter
 from .runtime import ForceRuntime, RuntimeOptions, RuntimeStats, Sensor, plan_stages
 from .scene import Scene, build_scene, default_bundle_path, describe_scene, load_scene
-from .sources import CameraSource, ReplayFolderSource, VideoFileSource, load_background
+from .sources import CameraSource, ReplayFolderSource, StreamLost, VideoFileSource, load_background, open_v4l2
 # --- synthetic ---
 from .synthetic import (ContactSpec, DatasetOptions, DatasetSummary, IndenterSplit, SyntheticFrame, VirtualDigit,
                         VirtualDigitOptions, VirtualDigitSource, generate_dataset, indenter_split, paper_split,

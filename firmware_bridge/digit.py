@@ -1,5 +1,9 @@
 """DIGIT as a frame source: find it by serial, configure it, survive it disappearing.
 
+Capture itself (opening through V4L2, size/fps, orientation, VGA halving, corrupt-frame
+counting) is :class:`~tactile_force.edge.sources.CameraSource`; this module adds what is
+DIGIT-specific: serial lookup through sysfs, LED intensity, reconnect policy, USB reset.
+
 Frames come out in the package convention: HxWx3 uint8 BGR, portrait 320 rows x 240
 columns (the camera's landscape image transposed and flipped as digit-interface does;
 VGA is then halved). Settings follow digit-interface: QVGA 320x240 at 60/30 fps, VGA
@@ -19,16 +23,13 @@ import cv2
 import numpy as np
 
 from ..edge.errors import SourceError, require
-from ..edge.frames import FRAME_COLS, FRAME_ROWS, FrameSource, TimedFrame
-from ..edge.sources import orient_digit
+from ..edge.frames import TimedFrame
+from ..edge.sources import MAX_CORRUPT_IN_ROW, CameraSource, Capture, StreamLost, open_v4l2
 from .discovery import AttachedDevice, discover, find_digit
 from .sysfs import UsbDeviceInfo
 from .usb_ids import DIGIT_RGB_INTENSITY_MIN_REVISION
 
 log = logging.getLogger(__name__)
-
-#: This many undecodable frames in a row count as a dead stream (reconnect).
-MAX_CORRUPT_IN_ROW = 30
 
 #: name -> (width, height, allowed fps), landscape as the camera streams.
 RESOLUTIONS: dict[str, tuple[int, int, tuple[int, ...]]] = {
@@ -94,107 +95,80 @@ def reset_usb_device(info: UsbDeviceInfo, find: Callable | None = None) -> None:
                           "write access to /dev/bus/usb needs the udev rule (tactile-force devices)") from None
 
 
-def _default_capture(node: str):
-    return cv2.VideoCapture(node, cv2.CAP_V4L2)
-
-
-class DigitSource(FrameSource):
+class DigitSource(CameraSource):
     """Frames from one DIGIT; reconnects with backoff when the stream dies.
 
+    A :class:`~tactile_force.edge.sources.CameraSource` reading in the caller's thread
+    (every frame returned, ``meta['sensor']`` = name), opened at the DIGIT's video node.
     ``open_capture(node)`` returns a cv2.VideoCapture-like object (tests pass a fake
     camera); ``sys_root``/``dev_root`` locate sysfs and /dev (tests pass fake trees).
-    read() blocks while reconnecting, so give each sensor its own thread: the other
-    finger keeps being served. SourceError after the last failed attempt.
+    ``attached`` is the discovered device (serial, firmware revision, USB bus/address),
+    None when a /dev path was given that discovery does not know; ``node`` is its
+    /dev/videoN. read() blocks while reconnecting, so give each sensor its own thread:
+    the other finger keeps being served. SourceError after the last failed attempt.
     """
 
-    def __init__(self, options: DigitOptions | None = None, *, open_capture: Callable[[str], object] | None = None,
+    def __init__(self, options: DigitOptions | None = None, *, open_capture: Callable[[str], Capture] | None = None,
                  sys_root: str | os.PathLike = "/sys", dev_root: str | os.PathLike = "/dev",
                  sleep: Callable[[float], None] = time.sleep) -> None:
-        super().__init__()
         self.options = options or DigitOptions()
         self.options.validate()
-        self._open_capture = open_capture or _default_capture
         self._roots = (sys_root, dev_root)
         self._sleep = sleep
         self.reconnects = 0
         self.usb_resets = 0
         self._attempts = 0  # reconnect attempts since the last good frame
-        self._cap = None
-        self._index = 0
-        self.device: AttachedDevice | None = None
-        self.node = self._locate()
-        self.name = (self.device.serial if self.device and self.device.serial else self.node) or "digit"
-        self._open(self.node)
+        self.attached: AttachedDevice | None = None
+        node = self._locate()
+        name = (self.attached.serial if self.attached and self.attached.serial else node) or "digit"
+        if self.options.intensity is not None:
+            rev = self.attached.firmware_revision if self.attached else None
+            if rev is None or rev < DIGIT_RGB_INTENSITY_MIN_REVISION:
+                raise SourceError(f"DIGIT at {node}: firmware revision {rev if rev is not None else 'unknown'} "
+                                  f"cannot take an RGB LED intensity (needs >= {DIGIT_RGB_INTENSITY_MIN_REVISION}); "
+                                  "update the firmware or leave intensity unset")
+        w, h, _ = RESOLUTIONS[self.options.resolution]
+        super().__init__(node, fps=self.options.fps, fourcc=(), max_failures=1, max_corrupt=MAX_CORRUPT_IN_ROW,
+                         name=name, size=(w, h), grab_thread=False, open_capture=open_capture or open_v4l2,
+                         configure=self._set_leds)
+
+    @property
+    def node(self) -> str:
+        """The /dev/videoN the DIGIT streams on (may change after a replug)."""
+        return str(self.device)
 
     # -- device lookup and configuration ------------------------------------------------
     def _locate(self) -> str:
         sensor = self.options.sensor
         if isinstance(sensor, str) and sensor.startswith("/dev/"):
             result = discover(*self._roots)
-            self.device = next((d for d in result.devices if sensor in d.info.video_nodes), None)
+            self.attached = next((d for d in result.devices if sensor in d.info.video_nodes), None)
             return sensor
-        self.device = find_digit(sensor, discover(*self._roots))
-        return self.device.video_node  # type: ignore[return-value]
+        self.attached = find_digit(sensor, discover(*self._roots))
+        return self.attached.video_node  # type: ignore[return-value]
 
-    def _open(self, node: str) -> None:
-        cap = self._open_capture(node)
-        if cap is None or not cap.isOpened():
-            raise SourceError(f"DIGIT {self.name if hasattr(self, 'name') else node}: cannot open {node} "
-                              "(busy in another program, unplugged, or no permission)")
-        w, h, _ = RESOLUTIONS[self.options.resolution]
-        cap.set(cv2.CAP_PROP_FRAME_WIDTH, w)
-        cap.set(cv2.CAP_PROP_FRAME_HEIGHT, h)
-        cap.set(cv2.CAP_PROP_FPS, self.options.fps)
+    def _set_leds(self, cap: Capture) -> None:
+        """CameraSource configure hook: LED intensity through the V4L2 zoom control."""
         if self.options.intensity is not None:
-            rev = self.device.firmware_revision if self.device else None
-            if rev is None or rev < DIGIT_RGB_INTENSITY_MIN_REVISION:
-                cap.release()
-                raise SourceError(f"DIGIT at {node}: firmware revision {rev if rev is not None else 'unknown'} "
-                                  f"cannot take an RGB LED intensity (needs >= {DIGIT_RGB_INTENSITY_MIN_REVISION}); "
-                                  "update the firmware or leave intensity unset")
             cap.set(cv2.CAP_PROP_ZOOM, intensity_code(*self.options.intensity))
-        self._cap = cap
 
     # -- reading ---------------------------------------------------------------------------
-    def _orient(self, raw: np.ndarray) -> np.ndarray:
-        """Landscape camera image -> portrait 320x240 BGR (edge.sources.orient_digit, then halve VGA)."""
-        if raw.ndim != 3 or raw.shape[2] != 3 or raw.size == 0 or raw.shape[0] > raw.shape[1]:
-            raise ValueError(f"camera image shape {raw.shape}, expected landscape H x W x 3")
-        out = orient_digit(raw)
-        if out.shape[:2] != (FRAME_ROWS, FRAME_COLS):
-            out = cv2.resize(out, (FRAME_COLS, FRAME_ROWS), interpolation=cv2.INTER_AREA)
-        return out
-
     def read(self) -> TimedFrame:
         """Next frame (never None: a camera stream has no end); SourceError when it cannot come back."""
-        corrupt_in_row = 0
         while True:
-            if self._cap is None:
-                raise SourceError(f"DIGIT {self.name}: source is closed")
-            ok, raw = self._cap.read()
-            ts = time.monotonic_ns()
-            if ok and raw is not None:
-                try:
-                    frame = self._orient(raw)
-                except ValueError as exc:
-                    self.stats.corrupt += 1
-                    corrupt_in_row += 1
-                    log.warning("DIGIT %s: corrupt frame skipped (%s)", self.name, exc)
-                    if corrupt_in_row >= MAX_CORRUPT_IN_ROW:
-                        corrupt_in_row = 0
-                        self._reconnect(f"{MAX_CORRUPT_IN_ROW} corrupt frames in a row")
-                    continue
-                self.stats.frames += 1
-                self._attempts = 0
-                self._index += 1
-                return TimedFrame(frame, ts, self._index - 1, meta={"sensor": self.name})
-            self.stats.dropped += 1
-            self._reconnect("read failed")
+            try:
+                item = super().read()
+            except StreamLost as exc:
+                self._reconnect(str(exc))
+                continue
+            self._attempts = 0
+            item.meta["sensor"] = self.name
+            return item
 
     def _reconnect(self, reason: str) -> None:
         """Reopen the stream with backoff. Attempts count until a good frame arrives, so a
         device that opens but never delivers still ends in SourceError."""
-        self._release()
+        self.close()
         opts, last = self.options, ""
         log.warning("DIGIT %s: %s; reconnecting", self.name, reason)
         while self._attempts < opts.reconnect_attempts:
@@ -202,30 +176,21 @@ class DigitSource(FrameSource):
             delay = min(opts.backoff_s * 2 ** (self._attempts - 1), opts.backoff_max_s)
             self._sleep(delay)
             self.reconnects += 1
-            if self._attempts == opts.reconnect_attempts and opts.usb_reset and self.device is not None:
+            if self._attempts == opts.reconnect_attempts and opts.usb_reset and self.attached is not None:
                 try:  # last resort
-                    reset_usb_device(self.device.info)
+                    reset_usb_device(self.attached.info)
                     self.usb_resets += 1
                 except (SourceError, ImportError) as exc:
                     last = str(exc)
                     log.warning("DIGIT %s: %s", self.name, exc)
             try:
-                if self.device is not None:  # the node number can change after a replug
-                    self.node = find_digit(self.device.serial or self.options.sensor, discover(*self._roots)).video_node
-                self._open(self.node)
+                node = None
+                if self.attached is not None:  # the node number can change after a replug
+                    node = find_digit(self.attached.serial or opts.sensor, discover(*self._roots)).video_node
+                self.reopen(node)
                 log.warning("DIGIT %s: reopened after attempt %d", self.name, self._attempts)
                 return
             except SourceError as exc:
                 last = str(exc)
         raise SourceError(f"DIGIT {self.name}: stream lost ({reason}) and {opts.reconnect_attempts} reconnect "
                           f"attempts failed; last error: {last or 'reopened but no good frame'}")
-
-    def _release(self) -> None:
-        if self._cap is not None:
-            try:
-                self._cap.release()
-            finally:
-                self._cap = None
-
-    def close(self) -> None:
-        self._release()

@@ -4,10 +4,12 @@ V4L2 cameras and the depthai device/queue layer. Everything above them is the re
 from __future__ import annotations
 
 import os
+import time
 import types
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 
@@ -140,12 +142,17 @@ class FakeHidDevice:
 
 # -- V4L2 camera --------------------------------------------------------------------------------
 class FakeCamera:
-    """A cv2.VideoCapture over a list of landscape frames; ``fail_after`` reads then returns (False, None)."""
+    """A cv2.VideoCapture over a list of frames; ``fail_after`` reads then returns (False, None).
+    ``formats``: the fourcc codes it accepts (None: any); ``period_s``: each read waits this long,
+    like a camera streaming at 1/period_s fps."""
 
-    def __init__(self, frames: list[np.ndarray], fail_after: int | None = None, opened: bool = True) -> None:
+    def __init__(self, frames: list[np.ndarray], fail_after: int | None = None, opened: bool = True,
+                 formats: tuple[str, ...] | None = None, period_s: float = 0.0) -> None:
         self.frames = frames
         self.fail_after = fail_after
         self.opened = opened
+        self.formats = formats
+        self.period_s = period_s
         self.props: dict[int, float] = {}
         self.reads = 0
         self.released = False
@@ -154,10 +161,20 @@ class FakeCamera:
         return self.opened
 
     def set(self, prop: int, value: float) -> bool:
+        if prop == cv2.CAP_PROP_FOURCC and self.formats is not None and \
+                value not in [cv2.VideoWriter_fourcc(*f) for f in self.formats]:
+            return False
         self.props[prop] = value
         return True
 
+    def get(self, prop: int) -> float:
+        return float(self.props.get(prop, 0.0))
+
     def read(self):
+        if self.released:
+            return False, None
+        if self.period_s:
+            time.sleep(self.period_s)
         self.reads += 1
         if self.fail_after is not None and self.reads > self.fail_after:
             return False, None

@@ -73,9 +73,10 @@ def test_vga_is_halved_to_the_frame_contract(tree, portraits):
 
 
 def test_old_firmware_refuses_rgb_intensity(tree, portraits):
+    cams = Cameras([landscape(portraits[0])], [])
     with pytest.raises(SourceError, match=r"revision 150 .*needs >= 200"):
-        DigitSource(DigitOptions("D00150", intensity=(1, 1, 1)), open_capture=Cameras([landscape(portraits[0])], []),
-                    sys_root=tree[0], dev_root=tree[1])
+        DigitSource(DigitOptions("D00150", intensity=(1, 1, 1)), open_capture=cams, sys_root=tree[0], dev_root=tree[1])
+    assert cams.opened == []  # refused before the camera is touched
 
 
 @pytest.mark.parametrize("opts, words", [
@@ -126,3 +127,26 @@ def test_endless_corrupt_frames_count_as_a_dead_stream(tree, portraits):
     with pytest.raises(SourceError, match="corrupt frames"):
         src.read()
     assert src.stats.corrupt > 0 and src.reconnects == 1
+
+
+def test_reconnect_follows_a_replug_to_a_new_node_and_restores_the_leds(tree, portraits):
+    sys_root, dev_root = tree
+
+    def replug(seconds):  # during the backoff the kernel re-enumerates the DIGIT as video6
+        for folder in (sys_root / "class" / "video4linux", dev_root):
+            (folder / "video2").rename(folder / "video6")
+
+    cams = Cameras([landscape(p) for p in portraits], [(1, True), (None, True)])
+    src = DigitSource(DigitOptions("D20001", intensity=(3, 2, 1), usb_reset=False), open_capture=cams,
+                      sys_root=sys_root, dev_root=dev_root, sleep=replug)
+    assert src.attached.serial == "D20001" and src.node.endswith("video2")
+    first, second = src.read(), src.read()
+    assert [node.rsplit("/", 1)[1] for node, _ in cams.opened] == ["video2", "video6"]
+    assert src.node.endswith("video6") and src.reconnects == 1
+    assert cams.opened[0][1].released and not cams.opened[1][1].released
+    assert cams.opened[1][1].props[cv2.CAP_PROP_ZOOM] == intensity_code(3, 2, 1)  # LEDs set again after reopen
+    assert (first.index, second.index) == (0, 1) and second.meta["sensor"] == "D20001"
+    assert np.array_equal(second.frame, portraits[0])  # the new camera's first frame
+    src.close()
+    with pytest.raises(SourceError, match="source is closed"):
+        src.read()
