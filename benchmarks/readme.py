@@ -5,6 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 
 PAGES = (
+    ("check.md", "The under-1 ms check: gate + inference p50 / p90 / p99 of the best RGBmod, D and RGBmod+D beside it, "
+                 "ratio to PyTorch eager"),
     ("latency.md", "Latency per stage (decode, gate, depth, inference, total), every variant, precision, size "
                    "and thread count, GMACs, the paper's way (PyTorch eager) beside ours, the gate's cost"),
     ("error_vs_runtime.md", "Error (RE / MAE, per 1 N bin; synthetic held-out indenters and real AUROVA frames) "
