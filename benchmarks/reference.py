@@ -155,6 +155,10 @@ def load_arrays(root: Path, with_depth: bool = False) -> Arrays:
 
 
 VIRTUAL_DEPTH_MAPPING = REPO / "edge" / "assets" / "virtual_digit_depth.npz"
+#: 8-bit levels per pixel of reconstructed indentation for the virtual DIGIT. Its
+#: reconstructed heights reach ~46 px at 15 N (p99 43 px), so 255 levels span 48 px; the
+#: depth stage's default (255/20) would clip 69 % of the training frames at 255.
+VIRTUAL_DEPTH_LEVELS_PER_PX = 255.0 / 48.0
 
 
 def depth_images(root: Path, rgb: np.ndarray) -> np.ndarray:
@@ -169,7 +173,7 @@ def depth_images(root: Path, rgb: np.ndarray) -> np.ndarray:
         return np.load(cache)
     log(f"computing depth images with the runtime's gate + depth stage ({VIRTUAL_DEPTH_MAPPING.name})")
     background = VirtualDigit(VirtualDigitOptions()).render(None, 0.0, led_gain=(1.0, 1.0, 1.0)).frame
-    stage = DepthStage(DepthOptions(mapping=VIRTUAL_DEPTH_MAPPING))
+    stage = DepthStage(DepthOptions(mapping=VIRTUAL_DEPTH_MAPPING, levels_per_px=VIRTUAL_DEPTH_LEVELS_PER_PX))
     out = np.zeros(rgb.shape[:3] + (1,), np.uint8)
     for i, frame in enumerate(rgb):
         gate = ContactGate()
@@ -309,6 +313,7 @@ def record_depth_mapping(bundle_dir: Path) -> None:
 
     b = load_bundle(bundle_dir)
     want = {"mapping": f"package:{VIRTUAL_DEPTH_MAPPING.name}", "mode": "exact",
+            "levels_per_px": VIRTUAL_DEPTH_LEVELS_PER_PX,
             "mapping_sha256": sha256_file(VIRTUAL_DEPTH_MAPPING), "mask": "contact gate (GateOptions defaults)"}
     if b.manifest.architecture.get("depth") != want:
         b.manifest.architecture["depth"] = want

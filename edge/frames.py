@@ -71,14 +71,27 @@ def check_frame(
     return np.ascontiguousarray(frame)
 
 
+#: Share of pixels clipped at the top (a channel >= 250) above which a frame is over-exposed.
+CLIPPED_SHARE = 0.5
+
+
 def exposure_problem(frame: np.ndarray) -> str | None:
-    """Return 'all-dark' or 'all-white' when a frame carries no usable image, else None."""
+    """Return 'all-dark', 'all-white' or 'over-exposed' when a frame carries no usable
+    image, else None.
+
+    all-dark / all-white: mean intensity below DARK_LEVEL / above WHITE_LEVEL;
+    over-exposed: at least CLIPPED_SHARE of the pixels have a channel clipped (>= 250),
+    e.g. LEDs driven far too bright, where the colour cues of contact are lost.
+    """
     # Subsample: a 1/16 grid is enough to judge global exposure and costs microseconds.
-    mean = float(frame[::4, ::4].mean())
+    sub = frame[::4, ::4]
+    mean = float(sub.mean())
     if mean < DARK_LEVEL:
         return "all-dark"
     if mean > WHITE_LEVEL:
         return "all-white"
+    if mean > 128.0 and float((sub.max(axis=2) >= 250).mean()) >= CLIPPED_SHARE:
+        return "over-exposed"
     return None
 
 

@@ -126,7 +126,7 @@ def depth_options_for(options: dict | None = None, manifest=None) -> dict:
     options = dict(options or {})
     recorded = dict(((manifest.architecture or {}).get("depth") or {}) if manifest is not None else {})
     for key, value in recorded.items():
-        if key in ("mapping", "mode") and key not in options:
+        if key in ("mapping", "mode", "levels_per_px", "paper_scale") and key not in options:
             options[key] = value
     if "mapping" not in options:
         raise SceneError("[depth] 'mapping' is required for depth bundles: the colour->normal .npz "
