@@ -266,7 +266,7 @@ def gate_table(repeats: int = 500, data: Path | None = None) -> tuple[list[str],
             t.append((time.perf_counter_ns() - t0) / 1e6)
         ious = []
         for im, (cx, cy), r in zip(z["imgs"], z["touch_center"].astype(float), z["touch_radius"].astype(float)):
-            gg = ContactGate(GateOptions(threshold=25.0, downscale=ds))
+            gg = ContactGate(GateOptions.gelsight_mini(downscale=ds))
             gg.capture_background([z["f0"]])
             m = gg.update(im).mask > 0
             lab = (xx - cx) ** 2 + (yy - cy) ** 2 <= r * r

@@ -39,6 +39,9 @@ class GateOptions:
     refresh_rate: per-frame weight of a no-contact frame in the background (0 = frozen).
     saturation_threshold / saturation_area_frac: a changed area (difference above
         saturation_threshold) covering this fraction of the frame reads as gel saturation.
+    convex_hull: replace each kept blob by its convex hull (the contact patch of a convex
+        indenter is convex). Off by default: a DIGIT grasps any shape, and on the AUROVA
+        frames the hull adds 30-90 % area. See :meth:`gelsight_mini`.
     """
 
     background_frames: int = 5
@@ -51,6 +54,15 @@ class GateOptions:
     refresh_rate: float = 0.02
     saturation_threshold: float = 60.0
     saturation_area_frac: float = 0.25
+    convex_hull: bool = False
+
+    @classmethod
+    def gelsight_mini(cls, **overrides: object) -> "GateOptions":
+        """Settings for a GelSight Mini (480x640): its LEDs make a stronger colour halo
+        around the contact than a DIGIT's, so a higher threshold, and convex hulls (ball and
+        other convex indenters). On the 16 labelled ball presses (shared data): IoU with the
+        contact circles mean 0.65, min 0.58 (threshold 25 without hulls: 0.61, 0.54)."""
+        return cls(**{"threshold": 28.0, "convex_hull": True, **overrides})
 
     def validate(self) -> None:
         """Raise ValueError naming the first bad field."""
@@ -69,6 +81,8 @@ class GateOptions:
             raise ValueError(f"gate.downscale={self.downscale}: expected an integer >= 1")
         if not 0 <= self.refresh_rate < 1:
             raise ValueError(f"gate.refresh_rate={self.refresh_rate}: expected 0 <= rate < 1")
+        if not isinstance(self.convex_hull, bool):
+            raise ValueError(f"gate.convex_hull={self.convex_hull!r}: expected true or false")
 
 
 @dataclass
@@ -165,6 +179,8 @@ class ContactGate:
         contours, _ = cv2.findContours(self._mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
         self._mask[:] = 0
         keep = [c for c in contours if cv2.contourArea(c) >= self._min_blob]
+        if o.convex_hull:
+            keep = [cv2.convexHull(c) for c in keep]
         if keep:
             cv2.drawContours(self._mask, keep, -1, 255, thickness=cv2.FILLED)
 

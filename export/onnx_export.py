@@ -2,8 +2,10 @@
 
 The graph takes raw uint8 NHWC frames (``rgb``: N x 320 x 240 x 3 BGR, ``depth``:
 N x 320 x 240 x 1) with a dynamic batch and returns ``force_n`` (N,) float32 in newtons.
-The purely linear head is folded into one Gemm. Before anything is written, ONNX Runtime
-is compared with torch eager (unfolded model) on real frames; a difference above
+The purely linear head is folded into one Gemm, and (by default) the BGR flip and the 1/255
+into conv1's weights, leaving Transpose (uint8) -> Cast -> AveragePool in front of conv1.
+Before anything is written, ONNX Runtime is compared with torch eager of the unfolded
+ForceNet (the training form) on real frames; a difference above
 ``parity_tol_n`` aborts and leaves no bundle.
 """
 
@@ -43,7 +45,8 @@ class ExportOptions:
     """How to export. variant/width/input_scale default to the checkpoint's metadata.
 
     parity_data: an authors'-layout dataset or PNG folder (or loaded CalibrationData);
-    None checks on random frames and says so in the manifest.
+    None checks on random frames and says so in the manifest. fold_preprocess: fold the BGR
+    flip and the 1/255 into conv1's weights (exact up to float rounding, faster graph).
     """
 
     variant: str | None = None
@@ -54,6 +57,7 @@ class ExportOptions:
     max_parity_frames: int = 32
     opset: int = 18
     fold_head: bool = True
+    fold_preprocess: bool = True
     name: str = ""
     overwrite: bool = False
     trained_on: str = ""
@@ -173,8 +177,18 @@ def output_spec() -> TensorSpec:
                       scaling="", unit="N")
 
 
-def preprocessing_steps(spec: ModelSpec) -> list[str]:
+def preprocessing_steps(spec: ModelSpec, folded: bool = False) -> list[str]:
+    """What the graph does to the raw frames before the network, in order."""
     k = scale_factor(spec.input_scale)
+    if folded:
+        steps = ["NHWC -> NCHW (uint8)", "cast uint8 -> float32"]
+        if k > 1:
+            r, c = network_hw(spec.input_scale)
+            steps.append(f"{k}x{k} area average (AveragePool): 320x240 -> {r}x{c}")
+        if "rgb" in VARIANT_INPUTS[spec.variant]:
+            steps.append("BGR -> RGB (rgb input): folded into conv1's weights")
+        steps.append("divide by 255: folded into conv1's weights")
+        return steps
     steps = ["cast uint8 -> float32", "NHWC -> NCHW"]
     if "rgb" in VARIANT_INPUTS[spec.variant]:
         steps.append("BGR -> RGB (rgb input)")
@@ -221,7 +235,7 @@ def export_bundle(source: str | os.PathLike | nn.Module, dest: str | os.PathLike
     else:
         data = random_frames(spec.variant)
     eager = ForceNet(model, spec, folded=False).eval()
-    graph_net = ForceNet(model, spec, folded=options.fold_head).eval()
+    graph_net = ForceNet(model, spec, folded=options.fold_head, fold_preprocess=options.fold_preprocess).eval()
     onnx_bytes = to_onnx(graph_net, options.opset)
     parity = check_parity(eager, onnx_bytes, data, options.parity_tol_n)
     import onnx
@@ -230,9 +244,11 @@ def export_bundle(source: str | os.PathLike | nn.Module, dest: str | os.PathLike
     r, c = network_hw(spec.input_scale)
     manifest = Manifest(
         variant=spec.variant, precision="fp32", inputs=_input_specs(spec.variant), output=output_spec(),
-        name=options.name or dest.name, preprocessing_in_graph=preprocessing_steps(spec),
+        name=options.name or dest.name,
+        preprocessing_in_graph=preprocessing_steps(spec, options.fold_preprocess),
         architecture={"family": "resnet18", "width": spec.width, "input_scale": spec.input_scale,
-                      "network_input_hw": [r, c], "head_folded": options.fold_head, "gmacs": round(macs.gmacs, 4),
+                      "network_input_hw": [r, c], "head_folded": options.fold_head,
+                      "preprocess_folded": options.fold_preprocess, "gmacs": round(macs.gmacs, 4),
                       "macs_by_op": macs.by_op, "params": int(sum(p.numel() for p in model.parameters())),
                       "opset": options.opset},
         parity=parity.as_dict(),

@@ -8,9 +8,17 @@ network sees what it saw in training:
 
 Steps: cast to float, NHWC -> NCHW, BGR -> RGB (rgb only), / 255, and for
 ``input_scale = 1/k`` an exact k x k area average (AveragePool, stride k).
+
+At export, ``fold_preprocess=True`` leaves the graph only NHWC -> NCHW (on uint8), cast and
+the area average, and moves the BGR flip and the 1/255 into a copy of each input's first
+convolution (:func:`fold_input_scaling`). Both are per-channel linear maps, the average pool
+is per-channel and conv1 pads with zeros, so the network computes the same function up to
+float rounding. Training keeps the unfolded form.
 """
 
 from __future__ import annotations
+
+import copy
 
 import torch
 from torch import nn
@@ -18,7 +26,7 @@ from torch import nn
 from tactile_force.edge.errors import TactileForceError
 from tactile_force.edge.frames import FRAME_SHAPE
 
-from .zoo import INPUT_CHANNELS, VARIANT_INPUTS, ModelSpec, check_variant, fold_linear_head
+from .zoo import INPUT_CHANNELS, VARIANT_INPUTS, ModelSpec, RGBmodD, check_variant, fold_linear_head
 
 
 def scale_factor(input_scale: float) -> int:
@@ -39,21 +47,64 @@ def network_hw(input_scale: float) -> tuple[int, int]:
 
 
 class Preprocess(nn.Module):
-    """uint8 NHWC frame batch -> float NCHW network input (see module docstring)."""
+    """uint8 NHWC frame batch -> float NCHW network input (see module docstring).
 
-    def __init__(self, input_scale: float = 1.0, kind: str = "rgb") -> None:
+    ``folded=True``: NHWC -> NCHW on uint8, cast, area average only; the output stays
+    BGR in 0..255, for a conv1 whose weights hold the flip and the 1/255.
+    """
+
+    def __init__(self, input_scale: float = 1.0, kind: str = "rgb", folded: bool = False) -> None:
         super().__init__()
         if kind not in INPUT_CHANNELS:
             raise TactileForceError(f"input kind {kind!r}; expected 'rgb' or 'depth'")
         self.kind = kind
+        self.folded = folded
         self.k = scale_factor(input_scale)
         self.pool = nn.AvgPool2d(self.k, self.k) if self.k > 1 else nn.Identity()
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        x = x.permute(0, 3, 1, 2).float()
+        x = x.permute(0, 3, 1, 2).float()  # exports as Transpose on uint8, then Cast
+        if self.folded:
+            return self.pool(x)
         if self.kind == "rgb":
             x = x.flip(1)  # BGR -> RGB
         return self.pool(x / 255.0)
+
+
+def input_convs(model: nn.Module) -> dict[str, nn.Conv2d]:
+    """The first convolution each network input ('rgb' / 'depth') goes through."""
+    if isinstance(model, RGBmodD):
+        return {"rgb": model.model_rgb.conv1, "depth": model.model_mask.conv1}
+    conv = getattr(model, "conv1", None)
+    if not isinstance(conv, nn.Conv2d):
+        raise TactileForceError(f"{type(model).__name__}: has no first convolution 'conv1' to fold the input "
+                                "scaling into; export it with fold_preprocess=False")
+    return {"rgb" if conv.in_channels == 3 else "depth": conv}
+
+
+def fold_input_scaling(model: nn.Module, variant: str) -> nn.Module:
+    """A copy of ``model`` whose conv1 weights take raw frames: input channels reversed
+    (BGR -> RGB, rgb input only) and divided by 255 (computed in float64).
+
+    ``fold_input_scaling(m, v)(pool(x))`` equals ``m(pool(x)[:, ::-1] / 255)`` for rgb (and
+    ``m(pool(x) / 255)`` for depth) up to float rounding; the original model is not changed.
+    """
+    names = VARIANT_INPUTS[check_variant(variant)]
+    folded = copy.deepcopy(model)  # keeps shared modules shared (RGBmod+D's depth trunk)
+    convs = input_convs(folded)
+    if set(convs) != set(names):
+        raise TactileForceError(f"{type(model).__name__}: first convolutions take {sorted(convs)} inputs but variant "
+                                f"{variant!r} has inputs {list(names)}")
+    with torch.no_grad():
+        for name, conv in convs.items():
+            if conv.in_channels != INPUT_CHANNELS[name] or conv.padding_mode != "zeros":
+                raise TactileForceError(f"{name} conv1: {conv.in_channels} input channels, padding "
+                                        f"{conv.padding_mode!r}; expected {INPUT_CHANNELS[name]} and 'zeros'")
+            w = conv.weight.double()
+            if name == "rgb":
+                w = w.flip(1)  # conv1 reads BGR channels in the order RGB weights expect
+            conv.weight.copy_((w / 255.0).to(conv.weight.dtype))
+    return folded
 
 
 class ForceNet(nn.Module):
@@ -62,18 +113,21 @@ class ForceNet(nn.Module):
     ``forward(rgb)`` for rgbmod, ``forward(depth)`` for d/dmod, ``forward(rgb, depth)``
     for rgbmod+d. Training calls this with uint8 batches, so the preprocessing it learns
     with is the one the exported graph runs. ``folded=True`` evaluates the head as the
-    single folded linear map (what the ONNX graph holds).
+    single folded linear map (what the ONNX graph holds). ``fold_preprocess=True`` (export
+    only) runs a copy of ``model`` with the BGR flip and 1/255 folded into conv1 (see
+    :func:`fold_input_scaling`); ``model`` itself is left as it is.
     """
 
-    def __init__(self, model: nn.Module, spec: ModelSpec, folded: bool = False) -> None:
+    def __init__(self, model: nn.Module, spec: ModelSpec, folded: bool = False, fold_preprocess: bool = False) -> None:
         super().__init__()
         self.spec = ModelSpec(check_variant(spec.variant), float(spec.width), float(spec.input_scale))
-        self.model = model
+        self.model = fold_input_scaling(model, self.spec.variant) if fold_preprocess else model
         self.input_names = VARIANT_INPUTS[self.spec.variant]
-        self.pre = nn.ModuleDict({n: Preprocess(spec.input_scale, n) for n in self.input_names})
+        self.fold_preprocess = fold_preprocess
+        self.pre = nn.ModuleDict({n: Preprocess(spec.input_scale, n, fold_preprocess) for n in self.input_names})
         self.folded = folded
         if folded:
-            w, b = fold_linear_head(model)
+            w, b = fold_linear_head(self.model)
             self.head = nn.Linear(w.shape[1], 1)
             with torch.no_grad():
                 self.head.weight.copy_(w)

@@ -23,7 +23,7 @@ from tactile_force.edge.gate import ContactGate, GateOptions
 from tests.conftest import shared_data
 
 
-GELSIGHT_MINI = GateOptions(threshold=25.0)  # its LEDs and gel give a larger halo than DIGIT
+GELSIGHT_MINI = GateOptions.gelsight_mini()  # threshold 28 + convex hulls (larger halo than DIGIT)
 
 
 def _noisy(img: np.ndarray, rng: np.random.Generator, gain: float = 1.0, sigma: float = 2.0) -> np.ndarray:
@@ -103,10 +103,39 @@ def _gelsight_ious(options: GateOptions) -> np.ndarray:
 def test_gelsight_mini_mask_matches_labelled_circles():
     ious = _gelsight_ious(GELSIGHT_MINI)
     print(f"GelSight Mini IoU mean {ious.mean():.3f} min {ious.min():.3f} over {ious.size} presses")
-    # Measured 0.62 mean: the mask also holds the deformed gel ring around the ball
-    # (real deformation, outside the labelled contact circle). The aim of 0.7 is not met.
-    assert ious.mean() >= 0.58
-    assert ious.min() >= 0.5
+    # Measured mean 0.652, min 0.582 (downscale 2; full res 0.653 / 0.587). Before (threshold
+    # 25, no hulls): 0.615 / 0.541. The mask still holds part of the deformed gel ring around
+    # the ball (outside the labelled circle) and the labels' centres sit up to ~18 px from the
+    # mask's; the aim of 0.7 is not met (see docs/runtime.md, "Contact gate").
+    assert ious.mean() >= 0.64
+    assert ious.min() >= 0.56
+
+
+def test_convex_hull_makes_gelsight_masks_convex_and_closer_to_the_labels():
+    with_hull = _gelsight_ious(GELSIGHT_MINI)
+    without = _gelsight_ious(GateOptions.gelsight_mini(convex_hull=False))
+    # Measured 0.652 vs 0.617 mean at the same threshold.
+    assert with_hull.mean() > without.mean() + 0.02
+    z = np.load(shared_data("gelsight_mini_ball_presses.npz"))
+
+    def hull_ratio(options: GateOptions) -> float:
+        gate = ContactGate(options)
+        gate.capture_background([z["f0"]])
+        mask = gate.update(z["imgs"][3]).mask
+        contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+        hull = np.zeros_like(mask)
+        cv2.drawContours(hull, [cv2.convexHull(c) for c in contours], -1, 255, cv2.FILLED)
+        return np.count_nonzero(hull) / np.count_nonzero(mask)
+
+    # Full resolution (no upscaling staircase): the hull mask is convex, the plain one is not.
+    assert hull_ratio(GateOptions.gelsight_mini(downscale=1)) < 1.02  # measured 1.011 (rasterisation)
+    assert hull_ratio(GateOptions.gelsight_mini(downscale=1, convex_hull=False)) > 1.05  # measured 1.09
+
+
+def test_convex_hull_is_off_by_default_and_must_be_a_bool():
+    assert GateOptions().convex_hull is False
+    with pytest.raises(ValueError, match="convex_hull"):
+        ContactGate(GateOptions(convex_hull="yes"))
 
 
 def test_downscaled_mask_agrees_with_full_resolution(aurova_dir):

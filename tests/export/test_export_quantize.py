@@ -64,6 +64,10 @@ def test_int8_static_runs_integer_convolutions_and_keeps_float_output(int8):
     # what ONNX Runtime actually executes: the groups are fused into integer QLinearConv kernels
     ran = ort_optimized_ops(int8.onnx_path.read_bytes())
     assert ran["QLinearConv"] == 20 and ran["Conv"] == 0
+    # exported with the BGR flip and 1/255 folded into conv1 (the default): that conv is quantized like the rest
+    assert int8.manifest.architecture["preprocess_folded"] and ran["Slice"] == 0 and ran["Div"] == 0
+    first = next(n for n in model.graph.node if n.op_type == "Conv")
+    assert producers[producers[producers[first.input[0]].input[0]].input[0]].op_type == "AveragePool"
     # the final linear layer stays float: its inputs are DequantizeLinear'd, its output is not re-quantized
     assert ran["Gemm"] == 1
     assert model.graph.output[0].type.tensor_type.elem_type == onnx.TensorProto.FLOAT
