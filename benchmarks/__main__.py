@@ -99,9 +99,9 @@ def cmd_latency(args, argv) -> None:
         "p50 0.98 -> 0.25 ms at downscale 2 on this loaded machine, same masks (IoU >= 0.92 with the old ones).",
         "", "## In-graph preprocessing alternatives (ORT, 1 thread, 320x240x3 uint8 -> 3x80x60 float, microseconds)",
         "", markdown_table(["graph", "p50 us", "p99 us", "max abs diff"], pre, 2), "",
-        "The exported graph's preprocessing is a large share of a compact model's inference; transposing "
-        "while still uint8 and folding the BGR flip and 1/255 into conv1 (or into a fixed 4x4 stride-4 conv) "
-        "gives the same input for less (recommendation to the export stage; not applied here).",
+        "The exported graph's preprocessing is a large share of a compact model's inference. The export "
+        "stage therefore transposes while still uint8 and folds the BGR flip and 1/255 into conv1's weights "
+        "(ExportOptions.fold_preprocess, default on; exact, parity-checked against the unfolded torch model).",
     ])
     _write("latency.md", text, args.out)
 

@@ -19,7 +19,7 @@ from .checkpoint import (Checkpoint, CheckpointError, load_checkpoint, load_into
 from .graph import name_nodes, op_counts, ort_optimized_ops  # noqa: E402
 from .macs import MacCount, count_macs  # noqa: E402
 from .onnx_export import ExportOptions, ParityError, ParityResult, export_bundle, to_onnx  # noqa: E402
-from .preprocess import ForceNet, Preprocess, network_hw, scale_factor  # noqa: E402
+from .preprocess import ForceNet, Preprocess, fold_input_scaling, input_convs, network_hw, scale_factor  # noqa: E402
 from .quantize import FrameCalibrationReader, QuantizeError, QuantizeOptions, quantize_bundle  # noqa: E402
 from .zoo import (VARIANT_INPUTS, D, Dmod, ModelSpec, RGBmod, RGBmodD, UnknownVariantError, build_model,  # noqa: E402
                   check_variant, fold_linear_head)

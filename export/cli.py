@@ -54,6 +54,9 @@ def configure_export(p: argparse.ArgumentParser) -> None:
     p.add_argument("--opset", type=int, default=18, help="ONNX opset, >= 17 (default 18)")
     p.add_argument("--trained-on", default="", help="free text recorded as the weights' provenance")
     p.add_argument("--force", action="store_true", help="replace --out if it exists")
+    p.add_argument("--no-fold-preprocess", action="store_true",
+                   help="keep the BGR flip and /255 as graph nodes instead of folding them into conv1's weights "
+                        "(the fold is exact and ~0.1 ms faster on a compact model; parity is checked either way)")
 
 
 def main_export(args: argparse.Namespace) -> int:
@@ -61,7 +64,8 @@ def main_export(args: argparse.Namespace) -> int:
 
     opts = ExportOptions(variant=args.variant, width=args.width, input_scale=args.input_scale,
                          parity_data=args.parity_data, parity_tol_n=args.tolerance, opset=args.opset,
-                         overwrite=args.force, trained_on=args.trained_on)
+                         overwrite=args.force, trained_on=args.trained_on,
+                         fold_preprocess=not args.no_fold_preprocess)
     b = export_bundle(args.checkpoint, args.out, opts)
     m = b.manifest
     print(f"wrote {b.path}  ({m.variant}, fp32, width {m.architecture['width']}, input scale "
