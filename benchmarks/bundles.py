@@ -8,6 +8,8 @@ import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from .frames import CACHE, REPO, frame_pool
 
 LATENCY_BUNDLES = CACHE / "latency_bundles"
@@ -27,7 +29,7 @@ class ModelConfig:
 
     @property
     def name(self) -> str:
-        return f"{self.variant.replace('+', 'p')}-w{self.width:g}-s{self.k}"
+        return f"{self.variant}-w{self.width:g}-s{self.k}"  # as benchmarks.reference names it
 
     @property
     def label(self) -> str:
@@ -39,11 +41,10 @@ VARIANT_LABEL = {"rgbmod": "RGBmod", "d": "D", "dmod": "Dmod", "rgbmod+d": "RGBm
 
 
 def parse_config(name: str) -> ModelConfig:
-    """'rgbmod-w0.25-s4' / 'rgbmodpd-w1-s1' -> ModelConfig."""
+    """'rgbmod-w0.25-s4' / 'rgbmod+d-w1-s1' -> ModelConfig."""
     try:
         v, w, s = name.rsplit("-", 2)
-        variant = v.replace("rgbmodpd", "rgbmod+d").replace("rgbmodp", "rgbmod+")
-        return ModelConfig(variant, float(w[1:]), int(s[1:]))
+        return ModelConfig(v, float(w[1:]), int(s[1:]))
     except (ValueError, IndexError):
         raise ValueError(f"model config {name!r}: expected VARIANT-wWIDTH-sK, e.g. rgbmod-w0.25-s4") from None
 
@@ -107,6 +108,32 @@ def trained_models() -> list[TrainedModel]:
                    if (d / sub / "model.json").is_file()}
         out.append(TrainedModel(cfg, d, json.loads(rec.read_text()), bundles))
     return out
+
+
+def bundle_re(path: Path) -> float:
+    """Synthetic-test RE of a bundle as its manifest records it (nan when absent)."""
+    try:
+        m = json.loads((path / "model.json").read_text())
+        return float(m["error"]["vs_ground_truth"]["quantized"]["re_mean"])
+    except (OSError, KeyError, TypeError, ValueError):
+        return float("nan")
+
+
+def rgbmod_candidates() -> list[tuple[Path, str, float]]:
+    """(bundle, description, synthetic-test RE) of every trained int8 RGBmod, most accurate
+    first; without trained ones, the single :func:`best_rgbmod_bundle` fallback."""
+    out = [(t.bundles["int8-static"], f"trained {t.config.name} int8", bundle_re(t.bundles["int8-static"]))
+           for t in trained_models() if t.config.variant == "rgbmod" and "int8-static" in t.bundles]
+    if not out:
+        path, which = best_rgbmod_bundle()
+        return [(path, which, bundle_re(path))]
+    return sorted(out, key=lambda c: (not np.isfinite(c[2]), c[2]))
+
+
+def trained_int8(variant: str, config: ModelConfig) -> Path | None:
+    """The trained int8 bundle of ``config`` when the reference recipe made one."""
+    p = TRAINED_MODELS / config.name / "int8"
+    return p if config.variant == variant and (p / "model.json").is_file() else None
 
 
 def best_rgbmod_bundle() -> tuple[Path, str]:

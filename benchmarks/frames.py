@@ -12,7 +12,6 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 CACHE = Path(os.environ.get("TACTILE_FORCE_CACHE", REPO / "benchmarks" / "cache"))
-VIRTUAL_DEPTH_MAPPING = REPO / "edge" / "assets" / "virtual_digit_depth.npz"
 
 
 @dataclass
@@ -42,10 +41,11 @@ class FramePool:
 
 
 def depth_stage():
-    """The runtime's depth stage with the virtual DIGIT's colour->normal calibration."""
-    from tactile_force.edge import DepthOptions, DepthStage
+    """The runtime's depth stage with the virtual DIGIT's colour->normal calibration, as the
+    reference depth models were trained with it."""
+    from .reference import virtual_depth_stage
 
-    return DepthStage(DepthOptions(mapping=VIRTUAL_DEPTH_MAPPING))
+    return virtual_depth_stage()
 
 
 def _render(n: int, seed: int) -> FramePool:

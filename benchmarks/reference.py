@@ -161,11 +161,18 @@ VIRTUAL_DEPTH_MAPPING = REPO / "edge" / "assets" / "virtual_digit_depth.npz"
 VIRTUAL_DEPTH_LEVELS_PER_PX = 255.0 / 48.0
 
 
+def virtual_depth_stage():
+    """The runtime's depth stage as the reference depth models were trained with it."""
+    from tactile_force.edge import DepthOptions, DepthStage
+
+    return DepthStage(DepthOptions(mapping=VIRTUAL_DEPTH_MAPPING, levels_per_px=VIRTUAL_DEPTH_LEVELS_PER_PX))
+
+
 def depth_images(root: Path, rgb: np.ndarray) -> np.ndarray:
     """Depth images (N,320,240,1) uint8 of every frame, made as the runtime makes them:
     the contact gate's mask + the depth stage with the virtual DIGIT's calibration
     (benchmarks/virtual_depth_calibration.py). Cached next to the dataset."""
-    from tactile_force.edge import ContactGate, DepthOptions, DepthStage
+    from tactile_force.edge import ContactGate
     from tactile_force.edge.synthetic import VirtualDigit, VirtualDigitOptions
 
     cache = root / "depth.npy"
@@ -173,7 +180,7 @@ def depth_images(root: Path, rgb: np.ndarray) -> np.ndarray:
         return np.load(cache)
     log(f"computing depth images with the runtime's gate + depth stage ({VIRTUAL_DEPTH_MAPPING.name})")
     background = VirtualDigit(VirtualDigitOptions()).render(None, 0.0, led_gain=(1.0, 1.0, 1.0)).frame
-    stage = DepthStage(DepthOptions(mapping=VIRTUAL_DEPTH_MAPPING, levels_per_px=VIRTUAL_DEPTH_LEVELS_PER_PX))
+    stage = virtual_depth_stage()
     out = np.zeros(rgb.shape[:3] + (1,), np.uint8)
     for i, frame in enumerate(rgb):
         gate = ContactGate()

@@ -85,24 +85,67 @@ class GateOptions:
             raise ValueError(f"gate.convex_hull={self.convex_hull!r}: expected true or false")
 
 
-@dataclass
 class GateResult:
     """One gate decision.
 
-    contact: gate open (after hysteresis). mask: HxW uint8 0/255 at the frame's full
-    resolution (a buffer the gate reuses: copy it to keep it past the next update).
-    area_px: masked area in full-resolution pixels. centroid: (x, y) pixels or None.
-    bbox: (x, y, w, h) pixels or None. saturation_seen: a large strongly changed area.
-    background_ready: False while the background is still being learnt (then contact is False).
+    contact: gate open (after hysteresis). area_px: masked area in full-resolution pixels.
+    saturation_seen: a large strongly changed area. background_ready: False while the
+    background is still being learnt (then contact is False).
+
+    mask (HxW uint8 0/255 at the frame's full resolution), centroid ((x, y) pixels or None)
+    and bbox ((x, y, w, h) pixels or None) are computed on first access from the gate's
+    working mask, so the hot path of an RGBmod scene, which reads neither, skips the
+    upscale and the moments. The mask is a buffer the gate reuses: read or copy it before
+    the next ``update``.
     """
 
-    contact: bool
-    mask: np.ndarray
-    area_px: int
-    centroid: tuple[float, float] | None
-    bbox: tuple[int, int, int, int] | None
-    saturation_seen: bool
-    background_ready: bool = True
+    __slots__ = ("contact", "area_px", "saturation_seen", "background_ready", "_small", "_k", "_exact",
+                 "_full", "_mask_ready", "_geometry")
+
+    def __init__(self, contact: bool, area_px: int, saturation_seen: bool, small: np.ndarray, full: np.ndarray,
+                 k: int, exact: bool, background_ready: bool = True) -> None:
+        self.contact = contact
+        self.area_px = area_px
+        self.saturation_seen = saturation_seen
+        self.background_ready = background_ready
+        self._small, self._full, self._k, self._exact = small, full, k, exact
+        self._mask_ready = small is full
+        self._geometry: tuple | None = None
+
+    @property
+    def mask(self) -> np.ndarray:
+        if not self._mask_ready:
+            cv2.resize(self._small, (self._full.shape[1], self._full.shape[0]), dst=self._full,
+                       interpolation=cv2.INTER_NEAREST)
+            self._mask_ready = True
+        return self._full
+
+    def _measure(self) -> tuple:
+        if self._geometry is None:
+            if not self.area_px:
+                self._geometry = (None, None)
+            else:
+                # From the small mask when the factor divides the frame (the nearest-neighbour
+                # upscale maps every small pixel to a k x k block: exact), else the full mask.
+                src, k = (self._small, self._k) if self._exact else (self.mask, 1)
+                m = cv2.moments(src, binaryImage=True)
+                off = (k - 1) / 2.0
+                x, y, w, h = cv2.boundingRect(src)
+                self._geometry = ((k * m["m10"] / m["m00"] + off, k * m["m01"] / m["m00"] + off),
+                                  (int(x * k), int(y * k), int(w * k), int(h * k)))
+        return self._geometry
+
+    @property
+    def centroid(self) -> tuple[float, float] | None:
+        return self._measure()[0]
+
+    @property
+    def bbox(self) -> tuple[int, int, int, int] | None:
+        return self._measure()[1]
+
+    def __repr__(self) -> str:
+        return (f"GateResult(contact={self.contact}, area_px={self.area_px}, saturation_seen={self.saturation_seen}, "
+                f"background_ready={self.background_ready})")
 
 
 class ContactGate:
@@ -154,7 +197,7 @@ class ContactGate:
                 self._bg = np.mean(self._learn, axis=0, dtype=np.float32)
                 self._learn.clear()
             self._full_mask[:] = 0
-            return GateResult(False, self._full_mask, 0, None, None, False, background_ready=False)
+            return GateResult(False, 0, False, self._full_mask, self._full_mask, 1, True, background_ready=False)
 
         # Signed difference minus the global per-channel shift (LED drift, exposure), thresholded
         # on the max over B, G, R: |d - shift| > t on some channel <=> d outside [shift - t,
@@ -185,12 +228,10 @@ class ContactGate:
             cv2.drawContours(self._mask, keep, -1, 255, thickness=cv2.FILLED)
 
         s = int(o.downscale)
-        if s > 1:
+        small = self._mask if (s > 1 and self._exact) else self._full_mask
+        if small is self._full_mask and s > 1:
             cv2.resize(self._mask, (arr.shape[1], arr.shape[0]), dst=self._full_mask, interpolation=cv2.INTER_NEAREST)
-        # Area, centroid and box from the small mask when the factor divides the frame (the
-        # nearest-neighbour upscale then maps every small pixel to an s x s block: exact).
-        small = self._mask if self._exact else self._full_mask
-        k = s if self._exact else 1
+        k = s if small is self._mask else 1
         area = cv2.countNonZero(small) * k * k
 
         frac = area / self._full_area
@@ -199,16 +240,11 @@ class ContactGate:
         else:
             self._contact = frac >= o.on_area_frac
 
-        centroid = bbox = None
-        if area:
-            m = cv2.moments(small, binaryImage=True)
-            off = (k - 1) / 2.0
-            centroid = (k * m["m10"] / m["m00"] + off, k * m["m01"] / m["m00"] + off)
-            x, y, w, h = cv2.boundingRect(small)
-            bbox = (int(x * k), int(y * k), int(w * k), int(h * k))
         if not self._contact and o.refresh_rate > 0:
             cv2.accumulateWeighted(work, self._bg, o.refresh_rate)
-        return GateResult(self._contact, self._full_mask, int(area), centroid, bbox, bool(saturation_seen))
+        full = self._mask if s == 1 else self._full_mask
+        return GateResult(self._contact, int(area), bool(saturation_seen), small if s > 1 else full, full, k,
+                          self._exact)
 
     # -- internals ----------------------------------------------------------------------
     def _as_array(self, frame: np.ndarray | TimedFrame, i: int | None) -> np.ndarray:

@@ -63,7 +63,8 @@ def _fake_measure(gate_ms: float, inference_ms: float):
 
 @pytest.fixture
 def no_bundle_build(monkeypatch, tmp_path):
-    monkeypatch.setattr(check, "best_rgbmod_bundle", lambda: (tmp_path, "fake bundle"))
+    monkeypatch.setattr(check, "rgbmod_candidates", lambda: [(tmp_path, "fake bundle", 0.07)])
+    monkeypatch.setattr(check, "trained_int8", lambda variant, cfg: None)
 
 
 def test_check_verdict_follows_the_budget(no_bundle_build):
@@ -74,6 +75,19 @@ def test_check_verdict_follows_the_budget(no_bundle_build):
     assert "PASS" in report and "D (w0.25, 1/4) int8" in report and "RGBmod+D (w0.25, 1/4) int8" in report
     bad = check.run_check(_fake_measure(0.3, 0.9), frames=10)
     assert not bad.passed and "FAIL" in bad.report()
+
+
+def test_check_keeps_the_most_accurate_candidate_that_fits(monkeypatch, tmp_path):
+    accurate, fast = tmp_path / "accurate", tmp_path / "fast"
+    monkeypatch.setattr(check, "rgbmod_candidates",
+                        lambda: [(accurate, "trained accurate", 0.07), (fast, "trained fast", 0.10)])
+    monkeypatch.setattr(check, "trained_int8", lambda variant, cfg: None)
+    slow, quick = _fake_measure(0.3, 0.9), _fake_measure(0.2, 0.5)
+    res = check.run_check(lambda case: slow(case) if case.bundle == accurate else quick(case), frames=10)
+    assert res.passed and res.which.startswith("trained fast") and "RE 0.070 -> 0.100" in res.which
+    assert "over budget" in res.report() and "fits" in res.report()
+    both_fit = check.run_check(quick, frames=10)
+    assert both_fit.which == "trained accurate"
 
 
 def test_check_cli_exits_nonzero_when_budget_not_met(no_bundle_build, monkeypatch, capsys):
