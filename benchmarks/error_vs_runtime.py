@@ -62,12 +62,20 @@ def pareto_plot(rows: list[dict], path: Path, title: str) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(7, 4.5), dpi=120)
+    from matplotlib.ticker import FixedLocator, NullFormatter, ScalarFormatter
+
+    fig, ax = plt.subplots(figsize=(7.5, 4.8), dpi=120)
+    colours = {"rgbmod": "tab:blue", "d": "tab:orange", "dmod": "tab:green", "rgbmod+d": "tab:purple"}
     for r in rows:
-        marker = "o" if r["precision"] == "int8-static" else "s"
-        ax.scatter(r["p99"], r["synthetic"].overall.re_mean, marker=marker, s=40)
-        ax.annotate(f"{r['config']} {r['precision'].replace('-static', '')}", (r["p99"], r["synthetic"].overall.re_mean),
-                    fontsize=7, xytext=(4, 3), textcoords="offset points")
+        variant = r["config"].rsplit("-", 2)[0]
+        int8 = r["precision"] == "int8-static"
+        ax.scatter(r["p99"], r["synthetic"].overall.re_mean, marker="o" if int8 else "s", s=42,
+                   facecolors=colours.get(variant, "gray") if int8 else "none", edgecolors=colours.get(variant, "gray"))
+        if int8:  # one label per model; its fp32 twin is the hollow square beside it
+            ax.annotate(r["config"], (r["p99"], r["synthetic"].overall.re_mean), fontsize=7, xytext=(5, -9),
+                        textcoords="offset points")
+    ax.scatter([], [], marker="o", c="k", s=30, label="int8 static")
+    ax.scatter([], [], marker="s", facecolors="none", edgecolors="k", s=30, label="fp32")
     pts = sorted((r["p99"], r["synthetic"].overall.re_mean) for r in rows)
     front, best = [], np.inf
     for x, y in pts:
@@ -78,6 +86,9 @@ def pareto_plot(rows: list[dict], path: Path, title: str) -> Path:
         ax.step(*zip(*front), where="post", color="k", lw=0.8, label="Pareto front")
     ax.axvline(1.0, color="r", ls="--", lw=0.8, label="1 ms budget")
     ax.set_xscale("log")
+    ax.xaxis.set_major_locator(FixedLocator([0.5, 0.75, 1, 1.5, 2, 3, 5, 8]))
+    ax.xaxis.set_major_formatter(ScalarFormatter())
+    ax.xaxis.set_minor_formatter(NullFormatter())
     ax.set_xlabel("p99 latency, ms (gate + [depth] + inference, 1 thread)")
     ax.set_ylabel("RE on held-out synthetic indenters")
     ax.set_title(title, fontsize=9)
