@@ -84,7 +84,6 @@ class TorchEager:
         self.net = ForceNet(build_model(cfg.variant, cfg.width), ModelSpec(cfg.variant, cfg.width, 1.0 / cfg.k)).eval()
         self.needs_depth = cfg.variant != "rgbmod"
         self.rgb = cfg.variant in ("rgbmod", "rgbmod+d")
-        from tactile_force.export.macs import count_macs  # noqa: F401 - the GMACs come from the ONNX twin
 
     def predict(self, rgb: np.ndarray, depth: np.ndarray | None = None) -> np.ndarray:
         t = self.torch

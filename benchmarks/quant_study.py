@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from .bundles import CACHE, DEFAULT_CONFIG, TRAINED_MODELS, ModelConfig, latency_bundle, parse_config, trained_models
-from .evaluate import predict_all, real_frames, synthetic_test
+from .evaluate import predict_all, synthetic_test
 from .latency import LatencyCase, measure
 from .machine import command_line, describe_machine, header
 from .stats import markdown_table

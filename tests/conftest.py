@@ -23,3 +23,12 @@ def shared_data(*parts: str) -> Path:
 def aurova_dir() -> Path:
     """The 11 real DIGIT frames with forces (authors' layout)."""
     return shared_data("aurova_digit_grasp")
+
+
+@pytest.fixture
+def portraits(aurova_dir):
+    """The first three real AUROVA DIGIT frames (320x240x3 uint8 BGR, portrait)."""
+    from tactile_force.edge import AuthorsDataset
+
+    data = AuthorsDataset(aurova_dir)
+    return [data[i].frame for i in range(3)]

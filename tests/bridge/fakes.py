@@ -268,3 +268,8 @@ def fake_depthai(devices: list[str], model=lambda img: float(img.mean())) -> typ
     return types.SimpleNamespace(__version__="fake", Device=Device, Pipeline=Pipeline, ImgFrame=ImgFrame,
                                  NNArchive=lambda path: calls.append("NNArchive") or path,
                                  node=types.SimpleNamespace(NeuralNetwork=NeuralNetwork), calls=calls)
+
+
+def landscape(portrait):
+    """What the camera streams: the inverse of digit-interface's transpose + flip(0)."""
+    return np.ascontiguousarray(cv2.transpose(cv2.flip(portrait, 0)))

@@ -4,23 +4,11 @@ import cv2
 import numpy as np
 import pytest
 
-from tactile_force.edge.dataset import AuthorsDataset
 from tactile_force.edge.errors import SourceError
 from tactile_force.firmware_bridge import DigitOptions, DigitSource, intensity_code, reset_usb_device
 from tactile_force.firmware_bridge.sysfs import UsbDeviceInfo
 
-from .fakes import FakeCamera, FakeSysfsDevice, FakeUsbDevice, fake_find, make_fake_sysfs
-
-
-@pytest.fixture
-def portraits(aurova_dir):
-    data = AuthorsDataset(aurova_dir)
-    return [data[i].frame for i in range(3)]
-
-
-def landscape(portrait):
-    """What the camera streams: the inverse of digit-interface's transpose + flip(0)."""
-    return np.ascontiguousarray(cv2.transpose(cv2.flip(portrait, 0)))
+from .fakes import FakeCamera, FakeSysfsDevice, FakeUsbDevice, fake_find, landscape, make_fake_sysfs
 
 
 @pytest.fixture

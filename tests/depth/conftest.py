@@ -1,6 +1,5 @@
 """Fixtures of the depth tests: real mapping files from ../shared/data, built once."""
 
-import numpy as np
 import pytest
 
 from tests.conftest import shared_data

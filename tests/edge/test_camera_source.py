@@ -6,21 +6,9 @@ import cv2
 import numpy as np
 import pytest
 
-from tactile_force.edge.dataset import AuthorsDataset
 from tactile_force.edge.errors import SourceError
 from tactile_force.edge.sources import CameraSource, StreamLost
-from tests.bridge.fakes import FakeCamera
-
-
-@pytest.fixture
-def portraits(aurova_dir):
-    data = AuthorsDataset(aurova_dir)
-    return [data[i].frame for i in range(3)]
-
-
-def landscape(portrait):
-    """What the camera streams: the inverse of digit-interface's transpose + flip(0)."""
-    return np.ascontiguousarray(cv2.transpose(cv2.flip(portrait, 0)))
+from tests.bridge.fakes import FakeCamera, landscape
 
 
 class Factory:
