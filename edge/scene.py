@@ -15,9 +15,9 @@
 
     [[sensor]]
     name = "left"
-    source = "replay"         # "camera" | "replay" | "video" | "virtual"
+    source = "replay"         # "camera" | "replay" | "video" | "virtual" | "gelsight_mini"
     path = "grasp_01"         # replay folder / video file (relative to the scene file)
-    device = 0                # camera index or /dev/videoN
+    device = 0                # camera index or /dev/videoN; gelsight_mini: serial, index or /dev/videoN
     fps = 60.0                # camera rate; for replay/video: pace at this rate (omit = as fast as read)
     background = "bg.png"     # optional no-contact image(s); else learnt from the first frames
     gate = { threshold = 14.0 }   # per-sensor overrides
@@ -42,7 +42,7 @@ from typing import Any
 from .errors import AcceleratorUnavailableError, BundleError, SceneError, SourceError
 from .gate import ContactGate, GateOptions
 
-SOURCES = ("camera", "replay", "video", "virtual")
+SOURCES = ("camera", "replay", "video", "virtual", "gelsight_mini")
 BACKENDS = ("cpu", "oak")
 OUTPUT_KINDS = ("stdout", "csv", "jsonl")
 _RUNTIME_KEYS = {"bundle", "backend", "fallback", "deadline_ms", "threads", "max_frames", "report_stale",
@@ -250,6 +250,8 @@ def _bundle_summary(path: Path) -> tuple[bool | None, str]:
 def _source_line(s: SensorSpec) -> str:
     if s.source == "camera":
         return f"camera {s.device} via OpenCV V4L2 at {s.fps or 60:g} fps, newest frame only"
+    if s.source == "gelsight_mini":
+        return f"GelSight Mini {s.device} via OpenCV V4L2, cropped 1/7 per side, 320x240 portrait, newest frame only"
     if s.source == "virtual":
         return f"virtual DIGIT (seed {s.seed}, {s.n_grasps} grasps, {s.fps or 60:g} fps)"
     pace = f"paced at {s.fps:g} fps" if s.fps else "as fast as read"
@@ -303,6 +305,11 @@ def open_source(s: SensorSpec, clock=None):
         return sources.ReplayFolderSource(s.path, fps=s.fps, name=s.name, clock=clock)
     if s.source == "video":
         return sources.VideoFileSource(s.path, fps=s.fps, name=s.name, clock=clock)
+    if s.source == "gelsight_mini":
+        from tactile_force.firmware_bridge import gelsight  # USB sensor code, imported only now
+
+        return gelsight.GelSightMiniSource(gelsight.GelSightMiniOptions(sensor=s.device, fps=s.fps or 25.0),
+                                           name=s.name, clock=clock)
     try:
         from .synthetic import VirtualDigitSource
     except ImportError as exc:

@@ -173,30 +173,48 @@ def discover(sys_root: str | os.PathLike = "/sys", dev_root: str | os.PathLike =
     return DiscoveryResult(devices, method, note)
 
 
+def _find_sensor(kind: DeviceKind, label: str, sensor: str | int, result: DiscoveryResult,
+                 hint: str = "") -> AttachedDevice:
+    """The attached ``kind`` named by serial or by index in serial order; SourceError listing
+    what is attached when it is not there or cannot stream. ``hint`` is added to a miss."""
+    found = result.of_kind(kind)
+    listing = ", ".join(d.serial or "?" for d in found) or "none"
+    if isinstance(sensor, int) or (isinstance(sensor, str) and sensor.isdigit()):
+        idx = int(sensor)
+        ordered = sorted(found, key=lambda d: d.serial or "")
+        if not 0 <= idx < len(ordered):
+            raise SourceError(f"{label} index {idx}: {len(ordered)} {label}(s) attached ({listing}); "
+                              f"{result.note}".rstrip("; "))
+        dev = ordered[idx]
+    else:
+        matches = [d for d in found if d.serial == sensor]
+        if not matches:
+            raise SourceError(f"{label} {sensor!r} not attached (attached {label}s: {listing}{hint}); "
+                              f"{result.note}".rstrip("; "))
+        dev = matches[0]
+    if not dev.streamable:
+        raise SourceError(f"{label} {dev.serial}: cannot stream: " + "; ".join(dev.problems))
+    return dev
+
+
 def find_digit(sensor: str | int, result: DiscoveryResult | None = None) -> AttachedDevice:
     """The DIGIT named by serial ('D12345') or by index among attached DIGITs (0, 1, ...).
 
     Raises SourceError listing what is attached when it is not there or cannot stream.
     """
     result = result or discover()
-    digits = result.of_kind(DeviceKind.DIGIT)
-    listing = ", ".join(d.serial or "?" for d in digits) or "none"
-    if isinstance(sensor, int) or (isinstance(sensor, str) and sensor.isdigit()):
-        idx = int(sensor)
-        ordered = sorted(digits, key=lambda d: d.serial or "")
-        if not 0 <= idx < len(ordered):
-            raise SourceError(f"DIGIT index {idx}: {len(ordered)} DIGIT(s) attached ({listing}); {result.note}".rstrip("; "))
-        dev = ordered[idx]
-    else:
-        matches = [d for d in digits if d.serial == sensor]
-        if not matches:
-            prog = result.of_kind(DeviceKind.DIGIT_PROGRAMMING)
-            extra = f"; {len(prog)} DIGIT(s) in programming mode" if prog else ""
-            raise SourceError(f"DIGIT {sensor!r} not attached (attached DIGITs: {listing}{extra}); {result.note}".rstrip("; "))
-        dev = matches[0]
-    if not dev.streamable:
-        raise SourceError(f"DIGIT {dev.serial}: cannot stream: " + "; ".join(dev.problems))
-    return dev
+    prog = result.of_kind(DeviceKind.DIGIT_PROGRAMMING)
+    hint = f"; {len(prog)} DIGIT(s) in programming mode" if prog else ""
+    return _find_sensor(DeviceKind.DIGIT, "DIGIT", sensor, result, hint)
+
+
+def find_gelsight_mini(sensor: str | int, result: DiscoveryResult | None = None) -> AttachedDevice:
+    """The GelSight Mini named by serial ('2BNK-CEGG', the end of its USB product string) or
+    by index among attached Minis (0, 1, ... in serial order).
+
+    Raises SourceError listing what is attached when it is not there or cannot stream.
+    """
+    return _find_sensor(DeviceKind.GELSIGHT_MINI, "GelSight Mini", sensor, result or discover())
 
 
 def udev_rules_path() -> Path:

@@ -144,11 +144,14 @@ class FakeHidDevice:
 class FakeCamera:
     """A cv2.VideoCapture over a list of frames; ``fail_after`` reads then returns (False, None).
     ``formats``: the fourcc codes it accepts (None: any); ``period_s``: each read waits this long,
-    like a camera streaming at 1/period_s fps."""
+    like a camera streaming at 1/period_s fps; ``size``: the (width, height) the driver settles
+    on whatever was asked (None: what was asked)."""
 
     def __init__(self, frames: list[np.ndarray], fail_after: int | None = None, opened: bool = True,
-                 formats: tuple[str, ...] | None = None, period_s: float = 0.0) -> None:
+                 formats: tuple[str, ...] | None = None, period_s: float = 0.0,
+                 size: tuple[int, int] | None = None) -> None:
         self.frames = frames
+        self.size = size
         self.fail_after = fail_after
         self.opened = opened
         self.formats = formats
@@ -168,6 +171,8 @@ class FakeCamera:
         return True
 
     def get(self, prop: int) -> float:
+        if self.size is not None and prop in (cv2.CAP_PROP_FRAME_WIDTH, cv2.CAP_PROP_FRAME_HEIGHT):
+            return float(self.size[0] if prop == cv2.CAP_PROP_FRAME_WIDTH else self.size[1])
         return float(self.props.get(prop, 0.0))
 
     def read(self):
