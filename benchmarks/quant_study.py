@@ -5,6 +5,8 @@ pooling, so a checkpoint exports at any scale 1/k)."""
 
 from __future__ import annotations
 
+import json
+
 import shutil
 from pathlib import Path
 
@@ -60,6 +62,8 @@ def run(args, argv) -> None:
         test.rgb, test.force = test.rgb[:40], test.force[:40]
     calib = _calibration(cfg, trained, 64 if args.quick else 200)
     ref = _errors(OnnxForceModel(fp32), test, None)
+    # Cached study bundles are keyed by the fp32 source's hash: retraining never reuses stale ones.
+    src = json.loads((Path(fp32) / "model.json").read_text())["sha256"][:10]
     conv1 = first_conv(fp32)
     rows = [["fp32 (reference)", "-", "-", "-", ref["re"], ref["mae"], 0.0, ref["nonfinite"],
              measure(LatencyCase(cfg, "fp32", frames=100 if args.quick else 300, bundle=fp32)).stages["inference"].p50]]
@@ -68,7 +72,7 @@ def run(args, argv) -> None:
     for method in methods:
         for per_channel in (True, False):
             for keep_name, keep in keeps.items():
-                dest = STUDY / f"{cfg.name}-{'trained' if trained else 'random'}-{method}-{'pc' if per_channel else 'pt'}-{len(keep)}"
+                dest = STUDY / f"{cfg.name}-{src}-{method}-{'pc' if per_channel else 'pt'}-{len(keep)}"
                 if not (dest / "model.json").is_file():
                     shutil.rmtree(dest, ignore_errors=True)
                     quantize_bundle(fp32, dest, QuantizeOptions(method=method, per_channel=per_channel, keep_float=keep,
@@ -81,7 +85,7 @@ def run(args, argv) -> None:
                 print(f"quant {method} pc={per_channel} keep={keep_name}: RE {e['re']:.4f} max|int8-fp32| "
                       f"{e['max_vs_fp32']:.4f} N", flush=True)
     for mode in ("int8-dynamic", "fp16"):
-        dest = STUDY / f"{cfg.name}-{'trained' if trained else 'random'}-{mode}"
+        dest = STUDY / f"{cfg.name}-{src}-{mode}"
         if not (dest / "model.json").is_file():
             shutil.rmtree(dest, ignore_errors=True)
             quantize_bundle(fp32, dest, QuantizeOptions(mode=mode, overwrite=True, name=dest.name),
@@ -122,7 +126,8 @@ def input_scale_study(test, quick: bool) -> tuple[list[list[object]], str]:
         native = _errors(OnnxForceModel(tm.bundles["fp32"]), test, None)
         lat = measure(LatencyCase(c, "fp32", frames=100, bundle=tm.bundles["fp32"])).stages["inference"].p50
         rows.append([c.name, f"1/{c.k}", f"1/{c.k} (native)", native["re"], native["mae"], lat])
-        dest = STUDY / f"{c.name}-at-s{2 * c.k}"
+        src = json.loads((tm.bundles["fp32"] / "model.json").read_text())["sha256"][:10]
+        dest = STUDY / f"{c.name}-{src}-at-s{2 * c.k}"
         if not (dest / "model.json").is_file():
             export_bundle(tm.root / "model.pth", dest, ExportOptions(input_scale=1.0 / (2 * c.k), overwrite=True,
                                                                       name=dest.name, parity_tol_n=1e-3))
