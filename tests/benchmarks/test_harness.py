@@ -90,12 +90,14 @@ def test_check_keeps_the_most_accurate_candidate_that_fits(monkeypatch, tmp_path
     assert both_fit.which == "trained accurate"
 
 
-def test_check_cli_exits_nonzero_when_budget_not_met(no_bundle_build, monkeypatch, capsys):
+def test_check_cli_exits_nonzero_when_budget_not_met(no_bundle_build, monkeypatch, capsys, tmp_path):
+    out = tmp_path / "docs"  # never the repo's docs/benchmarks: these figures are fakes
     monkeypatch.setattr(check, "measure", _fake_measure(0.4, 0.8))
-    assert cli.main(["--check"]) == 1
+    assert cli.main(["--check", "--out", str(out)]) == 1
     assert "FAIL: gate + inference p99 1.200 ms > budget 1.000 ms" in capsys.readouterr().out
+    assert "FAIL" in (out / "check.md").read_text()
     monkeypatch.setattr(check, "measure", _fake_measure(0.1, 0.3))
-    assert cli.main(["--check"]) == 0
+    assert cli.main(["--check", "--out", str(out)]) == 0
 
 
 def test_measure_stage_arithmetic_with_a_fake_clock(monkeypatch):
