@@ -14,7 +14,6 @@ for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_v, "1")
 
 import argparse  # noqa: E402
-import platform  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
@@ -123,26 +122,22 @@ def main() -> None:
     for name, fn in stage_rows:
         assert fn().ok
         lines.append(f"| {name} | {_time(fn, max(20, args.repeats // 4)):.2f} |")
+    import sys
+
+    if str(REPO) not in sys.path:  # run as a script: python benchmarks/bench_depth.py
+        sys.path.insert(0, str(REPO))
+    from benchmarks.machine import describe_machine, header
+
     import scipy
 
-    machine = (f"{platform.processor() or platform.machine()}, {platform.system()} {platform.release()}, "
-               f"Python {platform.python_version()}, numpy {np.__version__}, scipy {scipy.__version__}, "
-               f"OpenCV {cv2.__version__}; one thread (OMP/BLAS/OpenCV threads = 1)")
+    machine = describe_machine()
+    notes = f"One thread (OMP/BLAS/OpenCV threads = 1); scipy {scipy.__version__}."
     text = "\n".join(lines)
     print(text)
-    print("\nmachine:", machine)
+    print(f"\nmachine: {machine.line()}; {machine.background_load}")
     if args.write:
-        cpu = ""
-        try:
-            cpu = next(l.split(":", 1)[1].strip() for l in open("/proc/cpuinfo") if l.startswith("model name"))
-        except (OSError, StopIteration):
-            pass
-        Path(args.write).write_text(
-            "# Depth stage benchmark\n\n"
-            f"Command: `python benchmarks/bench_depth.py --repeats {args.repeats} --write {args.write}`\n\n"
-            f"Machine: {cpu} ({machine}). Shared machine: other jobs were running, so treat\n"
-            "absolute times as upper bounds; the ratios are what matters.\n\n" + text + "\n")
-
+        command = f"python benchmarks/bench_depth.py --repeats {args.repeats} --write {args.write}"
+        Path(args.write).write_text(header("Depth stage benchmark", command, machine, notes) + "\n" + text + "\n")
 
 if __name__ == "__main__":
     main()

@@ -75,6 +75,25 @@ def check_frame(
 CLIPPED_SHARE = 0.5
 
 
+def check_batch(x: object, name: str, shape: tuple[int, ...], max_batch: int | None = None) -> np.ndarray:
+    """Validate a model input batch (N, *shape) uint8, e.g. (N, 320, 240, 3) BGR frames or
+    (N, 320, 240, 1) depth images; FrameError naming ``name`` otherwise. Every inference
+    backend (CPU, OAK) checks its inputs with this."""
+    want = f"(N, {', '.join(map(str, shape))}) uint8"
+    if not isinstance(x, np.ndarray):
+        raise FrameError(f"{name}: expected a numpy.ndarray {want}, got {type(x).__name__}")
+    if x.size == 0:
+        raise FrameError(f"{name}: empty array (shape {x.shape}); expected {want}, N >= 1")
+    if x.dtype != np.uint8:
+        nan = " and contains NaN/inf" if np.issubdtype(x.dtype, np.floating) and not np.isfinite(x).all() else ""
+        raise FrameError(f"{name}: dtype {x.dtype}{nan}; expected uint8 (BGR 0..255, scaling is inside the graph)")
+    if x.ndim != len(shape) + 1 or x.shape[1:] != tuple(shape):
+        raise FrameError(f"{name}: shape {x.shape}; expected {want}")
+    if max_batch is not None and not 1 <= x.shape[0] <= max_batch:
+        raise FrameError(f"{name}: batch {x.shape[0]}; this model takes 1..{max_batch} frames per call")
+    return x
+
+
 def exposure_problem(frame: np.ndarray) -> str | None:
     """Return 'all-dark', 'all-white' or 'over-exposed' when a frame carries no usable
     image, else None.

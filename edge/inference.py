@@ -17,26 +17,11 @@ import numpy as np
 
 from .bundle import Bundle, load_bundle
 from .errors import BundleError, FrameError
-from .frames import FRAME_ROWS, FRAME_COLS
+from .frames import FRAME_COLS, FRAME_ROWS, check_batch
 
 RGB_SHAPE = (FRAME_ROWS, FRAME_COLS, 3)
 DEPTH_SHAPE = (FRAME_ROWS, FRAME_COLS, 1)
 MAX_BATCH = 2  # both fingers of a gripper
-
-
-def _check_batch(x: object, name: str, shape: tuple[int, ...], max_batch: int) -> np.ndarray:
-    if not isinstance(x, np.ndarray):
-        raise FrameError(f"{name}: expected a numpy.ndarray (N,{','.join(map(str, shape))}) uint8, got {type(x).__name__}")
-    if x.size == 0:
-        raise FrameError(f"{name}: empty array (shape {x.shape}); expected (N,{','.join(map(str, shape))}) uint8, N >= 1")
-    if x.dtype != np.uint8:
-        nan = " and contains NaN/inf" if np.issubdtype(x.dtype, np.floating) and not np.isfinite(x).all() else ""
-        raise FrameError(f"{name}: dtype {x.dtype}{nan}; expected uint8 (BGR 0..255, scaling is inside the graph)")
-    if x.ndim != 4 or x.shape[1:] != shape:
-        raise FrameError(f"{name}: shape {x.shape}; expected (N,{','.join(map(str, shape))}) uint8")
-    if not 1 <= x.shape[0] <= max_batch:
-        raise FrameError(f"{name}: batch {x.shape[0]}; this model takes 1..{max_batch} frames per call")
-    return x
 
 
 class OnnxForceModel:
@@ -132,14 +117,14 @@ class OnnxForceModel:
         depth variants, depth (N,320,240,1) uint8. N is 1 or 2. D / Dmod bundles read only
         the depth images (rgb may then be None)."""
         if rgb is None and self._rgb is None and depth is not None:
-            n = _check_batch(depth, "depth", DEPTH_SHAPE, MAX_BATCH).shape[0]
+            n = check_batch(depth, "depth", DEPTH_SHAPE, MAX_BATCH).shape[0]
         else:
-            rgb = _check_batch(rgb, "rgb", RGB_SHAPE, MAX_BATCH)
+            rgb = check_batch(rgb, "rgb", RGB_SHAPE, MAX_BATCH)
             n = rgb.shape[0]
         if self._depth is not None:
             if depth is None:
                 raise FrameError(f"depth: this {self.bundle.variant} bundle needs a depth image (N,320,240,1) uint8")
-            depth = _check_batch(depth, "depth", DEPTH_SHAPE, MAX_BATCH)
+            depth = check_batch(depth, "depth", DEPTH_SHAPE, MAX_BATCH)
             if depth.shape[0] != n:
                 raise FrameError(f"depth: batch {depth.shape[0]} but rgb batch {n}; expected one depth image per frame")
             self._depth[:n] = depth

@@ -25,7 +25,7 @@ import numpy as np
 from ..edge.errors import SourceError, require
 from ..edge.frames import TimedFrame
 from ..edge.sources import MAX_CORRUPT_IN_ROW, CameraSource, Capture, StreamLost, open_v4l2
-from .discovery import AttachedDevice, discover, find_digit
+from .discovery import AttachedDevice, discover, find_digit, locate_sensor
 from .sysfs import UsbDeviceInfo
 from .usb_ids import DIGIT_RGB_INTENSITY_MIN_REVISION
 
@@ -139,13 +139,8 @@ class DigitSource(CameraSource):
 
     # -- device lookup and configuration ------------------------------------------------
     def _locate(self) -> str:
-        sensor = self.options.sensor
-        if isinstance(sensor, str) and sensor.startswith("/dev/"):
-            result = discover(*self._roots)
-            self.attached = next((d for d in result.devices if sensor in d.info.video_nodes), None)
-            return sensor
-        self.attached = find_digit(sensor, discover(*self._roots))
-        return self.attached.video_node  # type: ignore[return-value]
+        self.attached, node = locate_sensor(self.options.sensor, find_digit, self._roots)
+        return node
 
     def _set_leds(self, cap: Capture) -> None:
         """CameraSource configure hook: LED intensity through the V4L2 zoom control."""

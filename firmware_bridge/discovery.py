@@ -217,6 +217,19 @@ def find_gelsight_mini(sensor: str | int, result: DiscoveryResult | None = None)
     return _find_sensor(DeviceKind.GELSIGHT_MINI, "GelSight Mini", sensor, result or discover())
 
 
+def locate_sensor(sensor: str | int, find: Callable[[str | int, DiscoveryResult], AttachedDevice],
+                  roots: tuple = ()) -> tuple[AttachedDevice | None, str]:
+    """(attached device or None, /dev/videoN) for a sensor named by serial, index or a
+    '/dev/...' path. ``find`` is :func:`find_digit` or :func:`find_gelsight_mini`; ``roots``
+    are the (sys_root, dev_root) passed to :func:`discover`. A path is used as given (the
+    device record is attached when discovery sees it); a serial or index must be found."""
+    result = discover(*roots)
+    if isinstance(sensor, str) and sensor.startswith("/dev/"):
+        return next((d for d in result.devices if sensor in d.info.video_nodes), None), sensor
+    dev = find(sensor, result)
+    return dev, dev.video_node  # type: ignore[return-value]
+
+
 def udev_rules_path() -> Path:
     """Path of the udev rules file shipped inside the package."""
     return Path(__file__).with_name("udev") / UDEV_RULES_NAME

@@ -28,7 +28,7 @@ import numpy as np
 from ..edge.errors import SourceError
 from ..edge.frames import FRAME_SHAPE, TimedFrame
 from ..edge.sources import CameraSource, Capture, Clock, open_v4l2
-from .discovery import AttachedDevice, discover, find_gelsight_mini
+from .discovery import AttachedDevice, find_gelsight_mini, locate_sensor
 
 log = logging.getLogger(__name__)
 
@@ -170,13 +170,8 @@ class GelSightMiniSource(CameraSource):
         return self._crop.expect if self._crop is not None else tuple(self.options.size)
 
     def _locate(self) -> str:
-        sensor = self.options.sensor
-        if isinstance(sensor, str) and sensor.startswith("/dev/"):
-            result = discover(*self._roots)
-            self.attached = next((d for d in result.devices if sensor in d.info.video_nodes), None)
-            return sensor
-        self.attached = find_gelsight_mini(sensor, discover(*self._roots))
-        return self.attached.video_node  # type: ignore[return-value]
+        self.attached, node = locate_sensor(self.options.sensor, find_gelsight_mini, self._roots)
+        return node
 
     def _adopt_negotiated_size(self, cap: Capture) -> None:
         """CameraSource configure hook: crop what the driver delivers when it is not what was asked."""

@@ -22,7 +22,7 @@ import numpy as np
 
 from ..edge.bundle import Bundle, load_bundle
 from ..edge.errors import AcceleratorUnavailableError, FrameError, MissingExtraError, require
-from ..edge.frames import FRAME_SHAPE
+from ..edge.frames import FRAME_SHAPE, check_batch
 
 
 @dataclass
@@ -104,13 +104,7 @@ class OakForceModel:
     def _check(self, batch: np.ndarray | None, name: str, depth: bool) -> np.ndarray:
         if batch is None:
             raise FrameError(f"{name}: required by variant {self.bundle.variant!r}, got None")
-        if not isinstance(batch, np.ndarray) or batch.dtype != np.uint8:
-            raise FrameError(f"{name}: expected a uint8 numpy array, got "
-                             f"{getattr(batch, 'dtype', type(batch).__name__)}")
-        want = (*FRAME_SHAPE[:2], 1) if depth else FRAME_SHAPE
-        if batch.ndim != len(want) + 1 or batch.shape[1:] != want:
-            raise FrameError(f"{name}: shape {batch.shape}; expected (N, {', '.join(map(str, want))})")
-        return batch
+        return check_batch(batch, name, (*FRAME_SHAPE[:2], 1) if depth else FRAME_SHAPE)
 
     def predict(self, rgb: np.ndarray | None, depth: np.ndarray | None = None) -> np.ndarray:
         """Forces in N, shape (N,) float32, for rgb (N,320,240,3) uint8 BGR or, for d/dmod

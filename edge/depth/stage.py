@@ -18,7 +18,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..frames import FRAME_SHAPE, exposure_problem
+from ..errors import FrameError
+from ..frames import FRAME_SHAPE, check_frame, exposure_problem
 from .calibration import NormalLUT
 from .depth_image import exact_depth_image, paper_depth_image
 from .gradients import GradientGuards, normals_to_gradients
@@ -130,15 +131,11 @@ class DepthStage:
     # ------------------------------------------------------------------ per frame
     @staticmethod
     def _frame_problem(frame) -> str | None:
-        if not isinstance(frame, np.ndarray):
-            return f"frame: expected numpy.ndarray, got {type(frame).__name__}"
-        if frame.dtype != np.uint8:
-            nan = ""
-            if np.issubdtype(frame.dtype, np.floating) and not np.all(np.isfinite(frame)):
-                nan = " holding NaN/inf"
-            return f"frame: dtype {frame.dtype}{nan}; expected uint8 BGR"
-        if frame.shape != FRAME_SHAPE:
-            return f"frame: shape {frame.shape}; expected {FRAME_SHAPE} (HxWx3 BGR)"
+        """Why a frame cannot be used (the shared frame contract + exposure), else None."""
+        try:
+            check_frame(frame, name="frame", shape=FRAME_SHAPE)
+        except FrameError as exc:
+            return str(exc)
         return exposure_problem(frame)
 
     def _mask(self, mask) -> tuple[np.ndarray | None, str]:
