@@ -4,6 +4,7 @@ public export_bundle / quantize_bundle and cached) and the trained reference bun
 from __future__ import annotations
 
 import json
+import math
 import shutil
 from dataclasses import dataclass
 from pathlib import Path
@@ -112,11 +113,14 @@ def trained_models() -> list[TrainedModel]:
 
 def bundle_re(path: Path) -> float:
     """Synthetic-test RE of a bundle as its manifest records it (nan when absent)."""
+    from tactile_force.edge.bundle import read_manifest
+    from tactile_force.edge.errors import BundleError
+
     try:
-        m = json.loads((path / "model.json").read_text())
-        return float(m["error"]["vs_ground_truth"]["quantized"]["re_mean"])
-    except (OSError, KeyError, TypeError, ValueError):
+        score = read_manifest(path / "model.json").error_score()
+    except BundleError:
         return float("nan")
+    return score if math.isfinite(score) else float("nan")
 
 
 def rgbmod_candidates() -> list[tuple[Path, str, float]]:

@@ -1,11 +1,14 @@
-"""Per-stage latency of the hot path, driving the public API on virtual DIGIT frames in contact.
+"""Per-stage latency of what users run: ``ForceRuntime`` driven by an in-memory source.
 
-Stages per frame: source (PNG decode of the frame, what a replay source does), gate
-(ContactGate.update), depth (DepthStage.process with the gate's mask; depth variants
-only), inference (OnnxForceModel.predict, torch eager, or the depth polynomial), total
-(gate + depth + inference + the loop's glue: the cost once a frame is in memory). p50 / p90 /
-p99 over ``frames`` after ``warmup``; the gate sees a background captured from no-contact
-frames, so every measured frame is in contact (the CNN runs on every frame).
+Each case runs the runtime (one sensor, its contact gate with a background captured from
+no-contact frames, the depth stage for depth variants, the model) over pre-rendered virtual
+DIGIT frames in contact, read from memory by :class:`MemorySource`; stage times are the ones
+the runtime puts in every reading: source (read()), gate, depth, inference (the model's
+``predict``), total (from the frame's arrival to the finished reading, what a user's
+``total_ms`` shows) and glue = total - gate - depth - inference (the runtime's own work).
+For onnxruntime cases the same graph runs in a bare ``InferenceSession.run`` on the same
+frames (same session options) in the same run, so the runtime's overhead over bare inference
+is a measured figure. p50 / p90 / p99 over ``frames`` readings after ``warmup``.
 """
 
 from __future__ import annotations
@@ -19,11 +22,14 @@ from typing import Callable
 import cv2
 import numpy as np
 
+from tactile_force.edge.frames import FrameSource, TimedFrame
+
 from .bundles import ModelConfig, latency_bundle
 from .frames import FramePool, depth_stage, frame_pool
 from .stats import Percentiles, percentiles
 
-STAGES = ("source", "gate", "depth", "inference", "total", "gate+inference")
+STAGES = ("source", "gate", "depth", "inference", "total", "gate+inference", "glue")
+ENGINES = ("onnxruntime", "openvino", "torch-eager", "polynomial")
 Clock = Callable[[], int]
 
 #: The paper's figures, placed beside ours.
@@ -36,8 +42,8 @@ PAPER_FIGURES = {
 
 @dataclass(frozen=True)
 class LatencyCase:
-    """One row: what runs (engine: 'onnxruntime' | 'torch-eager' | 'polynomial'), its model
-    config (None for the polynomial baseline), precision, threads, frames measured."""
+    """One row: what runs (engine: one of ENGINES), its model config (None for the
+    polynomial baseline), precision, threads, frames measured."""
 
     config: ModelConfig | None
     precision: str
@@ -60,7 +66,8 @@ class LatencyCase:
 
 @dataclass
 class LatencyResult:
-    """Percentiles (ms) per stage, GMACs of the model (nan for the baseline), notes."""
+    """Percentiles (ms) per stage, GMACs of the model (nan for the baseline), notes; bare:
+    the same graph in a bare onnxruntime session on the same frames (onnxruntime cases)."""
 
     case: LatencyCase
     stages: dict[str, Percentiles]
@@ -68,6 +75,35 @@ class LatencyResult:
     note: str = ""
     bundle: str = ""
     samples: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
+    bare: Percentiles | None = None
+
+    @property
+    def overhead(self) -> float:
+        """The runtime's own cost over bare inference, p50: (total - gate - depth) / bare - 1."""
+        if self.bare is None or not self.bare.n:
+            return math.nan
+        own = self.samples["total"] - self.samples["gate"] - np.nan_to_num(self.samples["depth"])
+        return float(np.percentile(own, 50) / self.bare.p50 - 1.0)
+
+
+class MemorySource(FrameSource):
+    """A FrameSource over frames already in memory (cycled ``n`` times in all): what the
+    runtime reads when decoding or rendering is not part of the measurement. Each frame
+    arrives when read() is called (``arrival_ns``)."""
+
+    name = "memory"
+
+    def __init__(self, frames: np.ndarray, n: int, clock: Clock = time.monotonic_ns) -> None:
+        super().__init__()
+        self.frames, self.n, self.clock = frames, n, clock
+
+    def read(self) -> TimedFrame | None:
+        i = self.stats.frames
+        if i >= self.n:
+            return None
+        self.stats.frames += 1
+        now = self.clock()
+        return TimedFrame(self.frames[i % len(self.frames)], now, i, arrival_ns=now)
 
 
 class TorchEager:
@@ -89,7 +125,31 @@ class TorchEager:
         t = self.torch
         with t.inference_mode():
             xs = ([t.from_numpy(rgb)] if self.rgb else []) + ([t.from_numpy(depth)] if self.needs_depth else [])
-            return self.net(*xs).numpy()
+            return self.net(*xs).numpy().reshape(-1)
+
+
+class OpenVinoModel:
+    """The same ONNX graph on OpenVINO's CPU plugin (latency hint, one stream, ``threads``
+    inference threads, static batch 1). Needs the optional ``openvino`` package (bench extra)."""
+
+    def __init__(self, onnx_path: Path, threads: int, needs_depth: bool, inputs: list[str]) -> None:
+        import openvino as ov
+
+        core = ov.Core()
+        model = core.read_model(str(onnx_path))
+        shapes = {name: [1, 320, 240, 1 if name == "depth" else 3] for name in inputs}
+        model.reshape({model.input(n): s for n, s in shapes.items()})
+        self.compiled = core.compile_model(model, "CPU", {"INFERENCE_NUM_THREADS": threads, "NUM_STREAMS": 1,
+                                                          "PERFORMANCE_HINT": "LATENCY"})
+        self.request = self.compiled.create_infer_request()
+        self.inputs = inputs
+        self.needs_depth = needs_depth
+        self.version = ov.__version__ if hasattr(ov, "__version__") else ov.get_version()
+
+    def predict(self, rgb: np.ndarray, depth: np.ndarray | None = None) -> np.ndarray:
+        feed = {n: (depth if n == "depth" else rgb) for n in self.inputs}
+        out = self.request.infer(feed, share_inputs=True)
+        return np.asarray(next(iter(out.values())), np.float32).reshape(-1)
 
 
 class PolynomialBaseline:
@@ -107,69 +167,103 @@ class PolynomialBaseline:
 
 
 def _predictor(case: LatencyCase, pool: FramePool):
+    """(model, GMACs, note, where) for a case."""
+    if case.engine not in ENGINES:
+        raise ValueError(f"LatencyCase.engine={case.engine!r}; expected one of {ENGINES}")
     if case.engine == "polynomial":
         return PolynomialBaseline(pool), math.nan, "", ""
+    from tactile_force.edge import load_bundle
+
     if case.engine == "torch-eager":
         onnx_twin = latency_bundle(case.config, "fp32")
-        from tactile_force.edge import load_bundle
-
-        g = load_bundle(onnx_twin).manifest.architecture.get("gmacs", math.nan)
+        g = load_bundle(onnx_twin).manifest.architecture.gmacs or math.nan
         return TorchEager(case.config, case.threads), g, "random weights", "torch eager (no bundle)"
+    path = case.bundle or latency_bundle(case.config, case.precision)
+    bundle = load_bundle(path)
+    m = bundle.manifest
+    note = "random weights" if "random" in m.provenance.trained_on else "trained"
+    gmacs = float(m.architecture.gmacs or math.nan)
+    if case.engine == "openvino":
+        model = OpenVinoModel(bundle.onnx_path, case.threads, m.needs_depth, [s.name for s in m.inputs])
+        return model, gmacs, note + f"; OpenVINO {model.version}", str(path)
     from tactile_force.edge import OnnxForceModel
 
-    path = case.bundle or latency_bundle(case.config, case.precision)
-    model = OnnxForceModel(path, threads=case.threads)
-    m = model.bundle.manifest
-    note = "random weights" if "random" in str(m.provenance.get("trained_on", "")) else "trained"
-    return model, float(m.architecture.get("gmacs", math.nan)), note, str(path)
+    return OnnxForceModel(bundle, threads=case.threads), gmacs, note, str(path)
 
 
-def measure(case: LatencyCase, pool: FramePool | None = None, clock: Clock = time.perf_counter_ns) -> LatencyResult:
-    """Run ``case`` over the frame pool (cycled) and return per-stage percentiles in ms."""
+def bare_onnxruntime(case: LatencyCase, pool: FramePool, clock: Clock = time.perf_counter_ns) -> Percentiles:
+    """The case's graph in a bare ``InferenceSession.run`` (the runtime's session options:
+    ``threads`` intra-op threads, sequential, all graph optimisations) on the same frames, ms."""
+    import onnxruntime as ort
+
+    from tactile_force.edge import load_bundle
+
+    bundle = load_bundle(case.bundle or latency_bundle(case.config, case.precision))
+    so = ort.SessionOptions()
+    so.intra_op_num_threads = case.threads
+    so.inter_op_num_threads = 1
+    so.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
+    so.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL
+    so.log_severity_level = 3
+    sess = ort.InferenceSession(str(bundle.onnx_path), so, providers=["CPUExecutionProvider"])
+    kinds = {s.name: s.kind for s in bundle.manifest.inputs}
+    out = [bundle.manifest.output.name]
+    n_total = case.warmup + case.frames
+    t = np.empty(n_total, np.float64)
+    for i in range(n_total):
+        k = i % len(pool.rgb)
+        feed = {n: (pool.depth[k:k + 1] if kind == "depth" else pool.rgb[k:k + 1]) for n, kind in kinds.items()}
+        t0 = clock()
+        sess.run(out, feed)
+        t[i] = (clock() - t0) / 1e6
+    return percentiles(t[case.warmup:])
+
+
+def measure(case: LatencyCase, pool: FramePool | None = None, clock: Clock = time.monotonic_ns,
+            bare: bool = True) -> LatencyResult:
+    """Run ``case`` through ``ForceRuntime`` over the frame pool (cycled) and return
+    per-stage percentiles in ms; ``bare``: also time the graph in a bare onnxruntime
+    session (onnxruntime cases). ``clock`` is the runtime's clock (tests inject one)."""
     from tactile_force.edge import ContactGate
+    from tactile_force.edge.runtime import ForceRuntime, RuntimeOptions, Sensor
 
     pool = pool or frame_pool()
     cv2.setNumThreads(case.threads)
     predictor, gmacs, note, where = _predictor(case, pool)
     gate = ContactGate()
     gate.capture_background(pool.background)
-    depth = depth_stage() if case.needs_depth else None
     n_total = case.warmup + case.frames
-    t = np.zeros((n_total, 5), np.int64)  # clock stamps: start, decoded, gated, depth, inferred
-    t_end = np.zeros(n_total, np.int64)
-    rgb = np.empty((1, 320, 240, 3), np.uint8)
-    dbuf = np.empty((1, 320, 240, 1), np.uint8)
-    contact = 0
-    for i in range(n_total):
-        png = pool.png[i % len(pool.png)]
-        t[i, 0] = clock()
-        frame = cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_COLOR)
-        t[i, 1] = clock()
-        g = gate.update(frame)
-        t[i, 2] = clock()
-        contact += bool(g.contact)
-        d = None
-        if depth is not None:
-            res = depth.process(frame, g.mask)
-            dbuf[0] = res.depth
-            d = dbuf
-        t[i, 3] = clock()
-        rgb[0] = frame
-        predictor.predict(rgb, d)
-        t[i, 4] = clock()
-        t_end[i] = t[i, 4]
-    t = t[case.warmup:].astype(np.float64) / 1e6
+    source = MemorySource(pool.rgb, n_total, clock)
+    rt = ForceRuntime([Sensor("bench", source, gate)], predictor,
+                      RuntimeOptions(threads=case.threads, deadline_ms=1e9, latency_window=16),
+                      clock=clock, depth_factory=depth_stage if case.needs_depth else None)
+    lat = np.full((n_total, 5), np.nan)
+    contact = np.zeros(n_total, bool)
+    from tactile_force.edge.reading import Flags
+
+    def keep(r) -> None:
+        if r.frame_index >= 0 and not r.flags & Flags.STALE:
+            L = r.latency
+            lat[r.frame_index] = (L.source_ms, L.gate_ms, L.depth_ms, L.inference_ms, L.total_ms)
+            contact[r.frame_index] = not (r.flags & (Flags.NO_CONTACT | Flags.INVALID_INPUT))
+
+    rt.run(on_reading=keep)
+    rt.close()
+    t = lat[case.warmup:]
     samples = {
-        "source": t[:, 1] - t[:, 0],
-        "gate": t[:, 2] - t[:, 1],
-        "depth": t[:, 3] - t[:, 2] if depth is not None else np.full(len(t), np.nan),
-        "inference": t[:, 4] - t[:, 3],
-        "total": t[:, 4] - t[:, 1],
+        "source": t[:, 0],
+        "gate": t[:, 1],
+        "depth": t[:, 2] if case.needs_depth else np.full(len(t), np.nan),
+        "inference": t[:, 3],
+        "total": t[:, 4],
     }
     samples["gate+inference"] = samples["gate"] + samples["inference"]
-    if contact < n_total:
-        note = (note + f"; gate open on {contact}/{n_total} frames").strip("; ")
-    return LatencyResult(case, {k: percentiles(v) for k, v in samples.items()}, gmacs, note, where, samples)
+    samples["glue"] = samples["total"] - samples["gate"] - samples["inference"] - np.nan_to_num(samples["depth"])
+    n_contact = int(contact.sum())
+    if n_contact < n_total:
+        note = (note + f"; gate open on {n_contact}/{n_total} frames").strip("; ")
+    b = bare_onnxruntime(case, pool) if bare and case.engine == "onnxruntime" else None
+    return LatencyResult(case, {k: percentiles(v) for k, v in samples.items()}, gmacs, note, where, samples, b)
 
 
 # ----------------------------------------------------------------------------- the matrix
@@ -209,24 +303,49 @@ def default_cases(quick: bool = False) -> list[LatencyCase]:
             cases.append(LatencyCase(full, "fp32", engine="torch-eager", frames=slow_fp, warmup=3))
             if not quick:
                 cases.append(LatencyCase(full, "int8-static", threads=2, frames=slow_int8, warmup=5))
+    if openvino_available():
+        cases += openvino_cases(quick)
     return cases
+
+
+def openvino_available() -> bool:
+    try:
+        import openvino  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def openvino_cases(quick: bool = False) -> list[LatencyCase]:
+    """OpenVINO on the same ONNX graphs as the onnxruntime rows: compact and full-resolution
+    RGBmod and RGBmod+D, fp32 and int8 static, one thread."""
+    out = []
+    for v in ("rgbmod", "rgbmod+d"):
+        for w, k, n, warm in ((0.25, 4, 100 if quick else 1000, 30), (1.0, 1, 20 if quick else 100, 3)):
+            for p in ("fp32", "int8-static"):
+                out.append(LatencyCase(ModelConfig(v, w, k), p, engine="openvino", frames=n, warmup=warm))
+    return out
 
 
 def result_row(r: LatencyResult) -> list[object]:
     c = r.case
     s = r.stages
-    eng = {"onnxruntime": "ORT", "torch-eager": "torch eager", "polynomial": "numpy"}[c.engine]
+    eng = ENGINE_LABEL[c.engine]
     cells: list[object] = [c.label, f"{eng} {c.precision}", c.threads, s["total"].n, r.gmacs if r.gmacs == r.gmacs else None]
-    cells.append(s["source"].p50)
     for k in ("gate", "depth", "inference", "total"):
         p = s[k]
         cells.append(f"{p.p50:.3f} / {p.p90:.3f} / {p.p99:.3f}" if p.n else "-")
+    cells.append(s["glue"].p50)
+    cells.append(r.bare.p50 if r.bare is not None else None)
+    cells.append(f"{100 * r.overhead:+.0f} %" if math.isfinite(r.overhead) else "-")
     cells.append(r.note)
     return cells
 
 
-HEADERS = ["model", "engine, precision", "threads", "frames", "GMACs", "decode p50",
-           "gate p50/p90/p99", "depth p50/p90/p99", "inference p50/p90/p99", "total p50/p90/p99", "weights / notes"]
+ENGINE_LABEL = {"onnxruntime": "ORT", "openvino": "OpenVINO", "torch-eager": "torch eager", "polynomial": "numpy"}
+HEADERS = ["model", "engine, precision", "threads", "frames", "GMACs", "gate p50/p90/p99", "depth p50/p90/p99",
+           "inference p50/p90/p99", "total p50/p90/p99", "glue p50", "bare ORT p50", "overhead vs bare",
+           "weights / notes"]
 
 
 def gate_table(repeats: int = 500, data: Path | None = None) -> tuple[list[str], list[list[object]]]:

@@ -8,8 +8,9 @@ model can be rebuilt by anyone:
     python -m benchmarks.reference --configs rgbmod-w0.25-s4 --epochs 30
     python -m benchmarks.reference --default-bundle    # + rebuild edge/models/default
 
-Recipe (the paper's hyperparameters where they fit a CPU budget): Adam, L1 loss, batch
-64, no augmentation, weights from scratch, seeded. The paper's lr 4e-5 for 25 epochs over
+Recipe (the paper's hyperparameters where they fit a CPU budget), run by the package's one
+training loop (tactile_force.export.training, also used by ``tactile-force compress``): Adam,
+L1 loss, batch 64, no augmentation, weights from scratch, seeded. The paper's lr 4e-5 for 25 epochs over
 13k samples on a full ResNet-18 is scaled up to 1e-3 with cosine decay for the compact
 networks, which otherwise do not converge within a CPU budget. The best epoch on the
 validation indenters is kept. Split: the paper's S1 protocol (14 / 2 / 2 indenters).
@@ -25,7 +26,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import shutil
 import sys
@@ -201,82 +201,42 @@ def depth_images(root: Path, rgb: np.ndarray) -> np.ndarray:
 # ----------------------------------------------------------------------------- training
 
 def train(cfg: TrainConfig, data: Arrays, out_dir: Path) -> dict:
-    """Train one config; returns its record (val/test error, epochs, time)."""
-    import torch
-    from torch import nn
-
+    """Train one config with the package's training loop (tactile_force.export.training);
+    returns its record (val/test error, epochs, time)."""
     from tactile_force.edge.metrics import error_report
-    from tactile_force.export import ForceNet, ModelSpec, build_model, save_checkpoint
+    from tactile_force.export import ModelSpec, save_checkpoint
+    from tactile_force.export.training import Frames, TrainOptions, predict, preprocess, train_network
 
-    torch.manual_seed(cfg.seed)
-    np.random.seed(cfg.seed)
-    torch.set_num_threads(max(1, os.cpu_count() or 1))
     spec = ModelSpec(cfg.variant, cfg.width, cfg.input_scale)
-    net = ForceNet(build_model(cfg.variant, cfg.width), spec)
-
-    # Preprocess once (parameter-free, identical to the graph's), keep float32 in memory.
-    def prep(idx: np.ndarray) -> list[torch.Tensor]:
-        xs = []
-        for name in net.input_names:
-            src = data.rgb if name == "rgb" else data.depth
-            chunks = [net.pre[name](torch.from_numpy(src[idx[i:i + 256]])) for i in range(0, len(idx), 256)]
-            xs.append(torch.cat(chunks))
-        return xs
-
     tr, va, te = data.select("train"), data.select("val"), data.select("test")
-    with torch.no_grad():
-        x_tr, x_va, x_te = prep(tr), prep(va), prep(te)
-    y_tr = torch.from_numpy(data.force[tr])
-    model = net.model
-    opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
-    steps_per_epoch = math.ceil(len(tr) / cfg.batch)
-    sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=cfg.epochs * steps_per_epoch)
-    loss_fn = nn.L1Loss()
-    gen = torch.Generator().manual_seed(cfg.seed)
 
-    def predict(xs: list[torch.Tensor]) -> np.ndarray:
-        model.eval()
-        with torch.no_grad():
-            outs = [model(*[x[i:i + 256] for x in xs]).reshape(-1) for i in range(0, len(xs[0]), 256)]
-        return torch.cat(outs).numpy()
+    def frames(idx: np.ndarray) -> Frames:
+        inputs = {"rgb": data.rgb[idx]} if cfg.variant in ("rgbmod", "rgbmod+d") else {}
+        if cfg.variant != "rgbmod":
+            inputs["depth"] = data.depth[idx]  # type: ignore[index]
+        return Frames(inputs, data.force[idx])
 
-    best = (math.inf, None, -1)
-    t0 = time.perf_counter()
-    history = []
-    for epoch in range(cfg.epochs):
-        model.train()
-        order = torch.randperm(len(tr), generator=gen)
-        total = 0.0
-        for s in range(steps_per_epoch):
-            b = order[s * cfg.batch:(s + 1) * cfg.batch]
-            if len(b) < 2:
-                continue
-            opt.zero_grad(set_to_none=True)
-            loss = loss_fn(model(*[x[b] for x in x_tr]).reshape(-1), y_tr[b])
-            loss.backward()
-            opt.step()
-            sched.step()
-            total += float(loss.detach()) * len(b)
-        p_va = predict(x_va)
-        val = error_report(p_va, data.force[va]).overall
-        history.append({"epoch": epoch + 1, "train_l1": total / len(tr), "val_re": val.re_mean, "val_mae": val.mae_mean})
-        log(f"{cfg.name} epoch {epoch + 1}/{cfg.epochs}: train L1 {total / len(tr):.3f} N, "
-            f"val RE {val.re_mean:.3f} MAE {val.mae_mean:.3f} N ({time.perf_counter() - t0:.0f} s)")
-        if val.re_mean < best[0]:
-            best = (val.re_mean, {k: v.detach().clone() for k, v in model.state_dict().items()}, epoch + 1)
-    model.load_state_dict(best[1])
-    p_te = predict(x_te)
+    def epoch_log(e) -> None:
+        log(f"{cfg.name} epoch {e.epoch}/{cfg.epochs}: train L1 {e.train_l1:.3f} N, "
+            f"val RE {e.val_re:.3f} MAE {e.val_mae:.3f} N ({e.seconds:.0f} s)")
+
+    result = train_network(spec, frames(tr), frames(va),
+                           TrainOptions(epochs=cfg.epochs, lr=cfg.lr, batch=cfg.batch, seed=cfg.seed), log=epoch_log)
+    model = result.model
+    history = [{"epoch": e.epoch, "train_l1": e.train_l1, "val_re": e.val_re, "val_mae": e.val_mae}
+               for e in result.history]
+    p_te = predict(model, preprocess(result.net, frames(te).inputs))
     groups = {g: [str(m.get(g, "?")) for m in (data.meta[i] for i in te)] for g in ("indenter", "stiffness", "location")}
     report = error_report(p_te, data.force[te], groups=groups)
     out_dir.mkdir(parents=True, exist_ok=True)
     record = {
-        "config": asdict(cfg), "name": cfg.name, "best_epoch": best[2], "train_seconds": time.perf_counter() - t0,
+        "config": asdict(cfg), "name": cfg.name, "best_epoch": result.best_epoch, "train_seconds": result.seconds,
         "n_train": len(tr), "n_val": len(va), "n_test": len(te), "split": SPLIT,
         "dataset": f"synthetic n={DATASET_N} seed={DATASET_SEED} ({ABOVE_RANGE_SHARE:.0%} at 15-20 N)",
         "test": report.as_dict(), "history": history,
     }
     save_checkpoint(out_dir / "model.pth", model, spec, extra={"trained_on": record["dataset"], "split": SPLIT,
-                                                               "best_epoch": best[2]})
+                                                               "best_epoch": result.best_epoch})
     (out_dir / "record.json").write_text(json.dumps(record, indent=2))
     log(f"{cfg.name}: test {report.overall}")
     return record
@@ -324,13 +284,14 @@ def record_depth_mapping(bundle_dir: Path) -> None:
     """Write into a depth bundle's manifest which depth mapping made its training images,
     so a scene without a [depth] table builds the same depth stage (idempotent)."""
     from tactile_force.edge.bundle import load_bundle, sha256_file, write_bundle
+    from tactile_force.edge.manifest import DepthRecord
 
     b = load_bundle(bundle_dir)
-    want = {"mapping": f"package:{VIRTUAL_DEPTH_MAPPING.name}", "mode": "exact",
-            "levels_per_px": VIRTUAL_DEPTH_LEVELS_PER_PX,
-            "mapping_sha256": sha256_file(VIRTUAL_DEPTH_MAPPING), "mask": "contact gate (GateOptions defaults)"}
-    if b.manifest.architecture.get("depth") != want:
-        b.manifest.architecture["depth"] = want
+    want = DepthRecord(mapping=f"package:{VIRTUAL_DEPTH_MAPPING.name}", mode="exact",
+                       levels_per_px=VIRTUAL_DEPTH_LEVELS_PER_PX,
+                       mapping_sha256=sha256_file(VIRTUAL_DEPTH_MAPPING), mask="contact gate (GateOptions defaults)")
+    if b.manifest.depth != want:
+        b.manifest.depth = want
         write_bundle(bundle_dir, b.onnx_path.read_bytes(), b.manifest, overwrite=True)
 
 
@@ -346,7 +307,8 @@ def install_default_bundle(int8_bundle: Path) -> Path:
     src = load_bundle(int8_bundle)
     manifest = src.manifest
     manifest.name = "default-rgbmod-compact-int8"
-    manifest.provenance = {**manifest.provenance, "note": DEFAULT_NOTE, "trained_on": "synthetic"}
+    manifest.provenance.note = DEFAULT_NOTE
+    manifest.provenance.trained_on = "synthetic"
     return write_bundle(DEFAULT_BUNDLE_DIR, src.onnx_path.read_bytes(), manifest, overwrite=True).path
 
 

@@ -1,30 +1,88 @@
-"""tactile_force.edge: the robot-side runtime (numpy + onnxruntime + OpenCV, never torch).
+"""tactile_force.edge: the robot-side runtime (numpy + onnxruntime + OpenCV + SciPy, never torch).
 
 Data flow: frame source -> contact gate -> [depth stage for D/Dmod/RGBmod+D] -> ONNX
-inference -> ForceReading. See design.md for the contracts.
+inference -> ForceReading. See docs/architecture.md.
+
+Importing this package loads the contracts (frames, readings, manifest, bundles, errors)
+and nothing else; every other name below is imported on first use, so an RGBmod runtime
+never loads the depth stage, the virtual DIGIT or a device library.
 """
 
-from .bundle import DEPTH_VARIANTS, VARIANTS, Bundle, Manifest, TensorSpec, load_bundle, sha256_file, write_bundle
-from .dataset import AuthorsDataset, AuthorsDatasetWriter, Sample
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+from .bundle import Bundle, load_bundle, read_manifest, sha256_file, write_bundle
 from .errors import (AcceleratorUnavailableError, BundleError, DatasetError, FrameError, MissingExtraError, SceneError,
-                     SourceError,
-                     TactileForceError)
+                     SourceError, TactileForceError)
 from .frames import FRAME_SHAPE, FrameSource, SourceStats, TimedFrame, check_frame
-from .metrics import ErrorReport, ErrorStats, error_report, error_stats, relative_error
+from .manifest import DEPTH_VARIANTS, PRECISIONS, VARIANTS, InputKind, Manifest, Precision, Variant
 from .reading import MAX_VALID_FORCE_N, MIN_VALID_FORCE_N, Flags, ForceReading, StageLatency
 
-# --- runtime (sources, gate, inference, scenes) ---
-from .gate import ContactGate, GateOptions, GateResult
-from .inference import LadderChoice, OnnxForceModel, choose_bundle
-from .outputs import CsvWriter, JsonlWriter, StdoutWriter
-from .runtime import ForceRuntime, RuntimeOptions, RuntimeStats, Sensor, plan_stages
-from .scene import Scene, build_scene, default_bundle_path, describe_scene, load_scene
-from .sources import CameraSource, ReplayFolderSource, StreamLost, VideoFileSource, load_background, open_v4l2
-# --- synthetic ---
-from .synthetic import (ContactSpec, DatasetOptions, DatasetSummary, IndenterSplit, SyntheticFrame, VirtualDigit,
-                        VirtualDigitOptions, VirtualDigitSource, generate_dataset, indenter_split, paper_split,
-                        split_ids)
-# --- depth ---
-from .depth import DepthOptions, DepthResult, DepthStage, MaxDeformationBaseline, NormalLUT
+#: name -> submodule that defines it (imported on first access)
+_LAZY = {
+    # runtime
+    "ContactGate": "gate", "GateOptions": "gate", "GateResult": "gate",
+    "OnnxForceModel": "inference", "LadderChoice": "inference", "choose_bundle": "inference",
+    "CsvWriter": "outputs", "JsonlWriter": "outputs", "StdoutWriter": "outputs",
+    "ForceRuntime": "runtime", "RuntimeOptions": "runtime", "RuntimeStats": "runtime", "Sensor": "runtime",
+    "plan_stages": "runtime",
+    "Scene": "scene", "build_scene": "scene", "default_bundle_path": "scene", "describe_scene": "scene",
+    "load_scene": "scene",
+    "CameraSource": "sources", "ReplayFolderSource": "sources", "StreamLost": "sources", "VideoFileSource": "sources",
+    "load_background": "sources", "open_v4l2": "sources",
+    "ForceCalibration": "force_calibration", "DataStats": "data_stats",
+    # labelled data and metrics
+    "AuthorsDataset": "dataset", "AuthorsDatasetWriter": "dataset", "Sample": "dataset",
+    "ErrorReport": "metrics", "ErrorStats": "metrics", "error_report": "metrics", "error_stats": "metrics",
+    "relative_error": "metrics",
+    # depth stage (D / Dmod / RGBmod+D only)
+    "DepthOptions": "depth", "DepthResult": "depth", "DepthStage": "depth", "MaxDeformationBaseline": "depth",
+    "NormalLUT": "depth",
+    # the virtual DIGIT (demo, tests, benchmarks)
+    "ContactSpec": "synthetic", "DatasetOptions": "synthetic", "DatasetSummary": "synthetic",
+    "IndenterSplit": "synthetic", "SyntheticFrame": "synthetic", "VirtualDigit": "synthetic",
+    "VirtualDigitOptions": "synthetic", "VirtualDigitSource": "synthetic", "generate_dataset": "synthetic",
+    "indenter_split": "synthetic", "paper_split": "synthetic", "split_ids": "synthetic",
+}
 
-__all__ = [name for name in dir() if not name.startswith("_")]
+
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'tactile_force.edge' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))
+
+
+__all__ = sorted([
+    "Bundle", "load_bundle", "read_manifest", "sha256_file", "write_bundle",
+    "AcceleratorUnavailableError", "BundleError", "DatasetError", "FrameError", "MissingExtraError", "SceneError",
+    "SourceError", "TactileForceError",
+    "FRAME_SHAPE", "FrameSource", "SourceStats", "TimedFrame", "check_frame",
+    "DEPTH_VARIANTS", "PRECISIONS", "VARIANTS", "InputKind", "Manifest", "Precision", "Variant",
+    "MAX_VALID_FORCE_N", "MIN_VALID_FORCE_N", "Flags", "ForceReading", "StageLatency",
+    *_LAZY,
+])
+
+if TYPE_CHECKING:  # for type checkers and IDEs; at run time these load lazily
+    from .data_stats import DataStats
+    from .dataset import AuthorsDataset, AuthorsDatasetWriter, Sample
+    from .depth import DepthOptions, DepthResult, DepthStage, MaxDeformationBaseline, NormalLUT
+    from .force_calibration import ForceCalibration
+    from .gate import ContactGate, GateOptions, GateResult
+    from .inference import LadderChoice, OnnxForceModel, choose_bundle
+    from .metrics import ErrorReport, ErrorStats, error_report, error_stats, relative_error
+    from .outputs import CsvWriter, JsonlWriter, StdoutWriter
+    from .runtime import ForceRuntime, RuntimeOptions, RuntimeStats, Sensor, plan_stages
+    from .scene import Scene, build_scene, default_bundle_path, describe_scene, load_scene
+    from .sources import CameraSource, ReplayFolderSource, StreamLost, VideoFileSource, load_background, open_v4l2
+    from .synthetic import (ContactSpec, DatasetOptions, DatasetSummary, IndenterSplit, SyntheticFrame, VirtualDigit,
+                            VirtualDigitOptions, VirtualDigitSource, generate_dataset, indenter_split, paper_split,
+                            split_ids)

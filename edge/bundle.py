@@ -1,91 +1,42 @@
-"""Model bundles: an ONNX file plus a JSON manifest, the only thing edge/ needs.
+"""Model bundles on disk: an ONNX file plus its manifest, the only thing edge/ needs.
 
 A bundle is a folder ``NAME/`` holding ``model.onnx`` and ``model.json``, or a loose
-``NAME.onnx`` with a sibling ``NAME.json``. The manifest records what the graph expects
-and how it was made; :func:`load_bundle` refuses a bundle whose ONNX file does not match
-the manifest's sha256. :func:`write_bundle` writes a folder atomically: everything goes to
-a temporary sibling folder that is renamed into place only when complete.
+``NAME.onnx`` with a sibling ``NAME.json``. :func:`load_bundle` validates the manifest
+(:mod:`.manifest`), keeps the ONNX file inside the bundle folder and refuses a file
+whose sha256 does not match.
+
+Writing is crash-safe in every window. :func:`write_bundle` writes every file into a
+hidden sibling ``.NAME.XXXX.partial`` (fsync'd, with the writer's pid), then:
+
+- a new ``NAME`` appears by one ``rename``;
+- an existing ``NAME`` is swapped with the new folder by one ``renameat2(RENAME_EXCHANGE)``
+  (Linux), so ``NAME`` is at every instant either the old complete bundle or the new one.
+  Where the exchange is unavailable, the old folder is first renamed to ``.NAME.old``; a
+  crash between the two renames is repaired by the next :func:`load_bundle` or
+  :func:`write_bundle` (``.NAME.old`` moves back).
+
+Partials left by a killed writer (its pid no longer alive) are removed by the next write
+to the same place, or listed by :func:`stale_partials`.
 """
 
 from __future__ import annotations
 
+import ctypes
+import errno
 import hashlib
 import json
 import os
 import shutil
 import tempfile
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 from .errors import BundleError
+from .manifest import Manifest, manifest_from_json
 
-FORMAT_VERSION = 1
-VARIANTS = ("rgbmod", "d", "dmod", "rgbmod+d")
-#: Variants whose graph takes a depth image and so need the depth stage at run time.
-DEPTH_VARIANTS = ("d", "dmod", "rgbmod+d")
-PRECISIONS = ("fp32", "fp16", "int8-static", "int8-dynamic")
-
-
-@dataclass
-class TensorSpec:
-    """One graph input or output.
-
-    shape uses -1 for the dynamic batch; for inputs: dtype 'uint8', layout 'NHWC',
-    colour_order 'BGR' (rgb input) or 'GRAY' (depth input), and what the graph does to it.
-    """
-
-    name: str
-    shape: list[int]
-    dtype: str
-    kind: str = "rgb"  # 'rgb' | 'depth' | 'force'
-    layout: str = "NHWC"
-    colour_order: str = "BGR"
-    scaling: str = "x / 255 inside the graph"
-    unit: str = ""
-
-
-@dataclass
-class Manifest:
-    """The JSON manifest of a bundle (see design.md)."""
-
-    variant: str
-    precision: str
-    inputs: list[TensorSpec]
-    output: TensorSpec
-    sha256: str = ""
-    onnx_file: str = "model.onnx"
-    format_version: int = FORMAT_VERSION
-    name: str = ""
-    preprocessing_in_graph: list[str] = field(default_factory=list)
-    architecture: dict[str, Any] = field(default_factory=dict)  # input_scale, width, head_folded, gmacs
-    quantization: dict[str, Any] | None = None  # method, calibration data, per_channel, nodes kept float
-    parity: dict[str, Any] = field(default_factory=dict)  # max_abs_diff_n vs torch, frames
-    error: dict[str, Any] = field(default_factory=dict)  # RE/MAE vs ground truth and vs fp32
-    provenance: dict[str, Any] = field(default_factory=dict)  # checkpoint, sha256, trained_on, note
-    created_by: str = "tactile-force"
-
-    @property
-    def needs_depth(self) -> bool:
-        return self.variant in DEPTH_VARIANTS
-
-    def to_json(self) -> str:
-        return json.dumps(asdict(self), indent=2, sort_keys=False) + "\n"
-
-    @classmethod
-    def from_dict(cls, d: dict, source: str = "manifest") -> "Manifest":
-        try:
-            d = dict(d)
-            d["inputs"] = [TensorSpec(**s) for s in d["inputs"]]
-            d["output"] = TensorSpec(**d["output"])
-            m = cls(**d)
-        except (KeyError, TypeError) as exc:
-            raise BundleError(f"{source}: not a tactile-force manifest ({exc})") from None
-        if m.format_version != FORMAT_VERSION:
-            raise BundleError(f"{source}: manifest format_version {m.format_version}, this package reads {FORMAT_VERSION}")
-        if m.variant not in VARIANTS:
-            raise BundleError(f"{source}: unknown variant {m.variant!r}; expected one of {VARIANTS}")
-        return m
+_PID_FILE = ".writer-pid"
+_AT_FDCWD = -100
+_RENAME_EXCHANGE = 2
 
 
 @dataclass
@@ -98,7 +49,8 @@ class Bundle:
 
     @property
     def variant(self) -> str:
-        return self.manifest.variant
+        """The variant's name, e.g. ``'rgbmod'``."""
+        return self.manifest.variant.value
 
     @property
     def name(self) -> str:
@@ -106,6 +58,7 @@ class Bundle:
 
 
 def sha256_file(path: str | os.PathLike, chunk: int = 1 << 20) -> str:
+    """Hex sha256 of a file."""
     h = hashlib.sha256()
     with open(path, "rb") as fh:
         while block := fh.read(chunk):
@@ -116,13 +69,7 @@ def sha256_file(path: str | os.PathLike, chunk: int = 1 << 20) -> str:
 def _locate(path: Path) -> tuple[Path, Path]:
     """(onnx_path, manifest_path) for a bundle folder or a loose .onnx/.json pair."""
     if path.is_dir():
-        man = path / "model.json"
-        if not man.is_file():
-            jsons = sorted(path.glob("*.json"))
-            if len(jsons) != 1:
-                raise BundleError(f"{path}: bundle folder has no model.json manifest")
-            man = jsons[0]
-        return path / "model.onnx", man
+        return path / "model.onnx", path / "model.json"
     if path.suffix == ".onnx":
         return path, path.with_suffix(".json")
     if path.suffix == ".json":
@@ -130,21 +77,53 @@ def _locate(path: Path) -> tuple[Path, Path]:
     raise BundleError(f"{path}: not a bundle (expected a folder with model.onnx + model.json, or NAME.onnx with NAME.json)")
 
 
-def load_bundle(path: str | os.PathLike, verify: bool = True) -> Bundle:
-    """Read and verify a bundle; BundleError with the reason if anything is off."""
+def read_manifest(path: str | os.PathLike) -> Manifest:
+    """Read and validate a ``model.json`` file (format 1 is migrated)."""
     p = Path(path)
+    try:
+        text = p.read_bytes().decode("utf-8")
+        raw = json.loads(text)
+    except UnicodeDecodeError:
+        raise BundleError(f"{p}: manifest is not UTF-8 text; the file is damaged or not a manifest") from None
+    except json.JSONDecodeError as exc:
+        raise BundleError(f"{p}: manifest is not valid JSON ({exc.msg} at line {exc.lineno}); "
+                          "the file may be truncated") from None
+    except OSError as exc:
+        raise BundleError(f"{p}: cannot read the manifest ({exc.strerror})") from None
+    return manifest_from_json(raw, source=str(p))
+
+
+def load_bundle(path: str | os.PathLike, verify: bool = True) -> Bundle:
+    """Read and verify a bundle.
+
+    Parameters
+    ----------
+    path
+        A bundle folder, or a loose ``NAME.onnx`` / ``NAME.json``.
+    verify
+        Check the ONNX file's sha256 against the manifest (default).
+
+    Returns
+    -------
+    Bundle
+
+    Raises
+    ------
+    BundleError
+        With the reason: missing files, a manifest that does not validate, an ONNX file
+        outside the bundle, a hash mismatch.
+    """
+    p = Path(path)
+    if not p.exists():
+        _recover(p)
     if not p.exists():
         raise BundleError(f"{p}: bundle not found")
     onnx_path, man_path = _locate(p)
     if not man_path.is_file():
         raise BundleError(f"{man_path}: manifest missing; a bundle needs its JSON manifest next to the ONNX file")
-    try:
-        raw = json.loads(man_path.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise BundleError(f"{man_path}: manifest is not valid JSON ({exc}); the file may be truncated") from None
-    manifest = Manifest.from_dict(raw, source=str(man_path))
-    if manifest.onnx_file and p.is_dir():
-        onnx_path = p / manifest.onnx_file
+    manifest = read_manifest(man_path)
+    if p.is_dir():
+        onnx_path = p / manifest.onnx_file  # a plain file name: the manifest check refuses paths
     if not onnx_path.is_file():
         raise BundleError(f"{onnx_path}: ONNX file missing")
     if onnx_path.stat().st_size == 0:
@@ -159,43 +138,144 @@ def load_bundle(path: str | os.PathLike, verify: bool = True) -> Bundle:
     return Bundle(path=p, onnx_path=onnx_path, manifest=manifest)
 
 
+def _phase(name: str) -> None:
+    """A named point in :func:`write_bundle` (crash tests replace it to kill the writer there)."""
+
+
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def stale_partials(dest: str | os.PathLike) -> list[Path]:
+    """Partial folders of ``dest`` whose writer is gone (killed mid-write)."""
+    dest = Path(dest)
+    out = []
+    for cand in dest.parent.glob(f".{dest.name}.*.partial"):
+        pid_file = cand / _PID_FILE
+        try:
+            pid = int(pid_file.read_text().strip())
+        except (OSError, ValueError):
+            pid = -1
+        if pid <= 0 or not _pid_alive(pid):
+            out.append(cand)
+    return out
+
+
+def _recover(dest: Path) -> None:
+    """Repair an interrupted two-rename swap: ``.NAME.old`` is the last complete bundle."""
+    old = dest.with_name(f".{dest.name}.old")
+    if old.is_dir():
+        if dest.exists():
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.replace(old, dest)
+            _fsync_dir(dest.parent)
+
+
+def _fsync_dir(path: Path) -> None:
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+def _exchange(a: Path, b: Path) -> bool:
+    """Atomically swap two paths (Linux renameat2); False where unsupported."""
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        fn = libc.renameat2
+    except (OSError, AttributeError):
+        return False
+    if fn(_AT_FDCWD, os.fsencode(a), _AT_FDCWD, os.fsencode(b), _RENAME_EXCHANGE) == 0:
+        return True
+    err = ctypes.get_errno()
+    if err in (errno.ENOSYS, errno.EINVAL, errno.ENOTSUP):
+        return False
+    raise OSError(err, os.strerror(err), str(b))
+
+
 def write_bundle(dest: str | os.PathLike, onnx_bytes: bytes, manifest: Manifest,
                  extra_files: dict[str, bytes] | None = None, overwrite: bool = False) -> Bundle:
-    """Write a bundle folder atomically and return it verified.
+    """Write a bundle folder crash-safely and return it verified.
 
-    The sha256 field of ``manifest`` is filled in here. Nothing appears at ``dest``
-    unless every file was written; an existing ``dest`` is replaced only with
-    ``overwrite=True``.
+    Parameters
+    ----------
+    dest
+        The bundle folder to create (or replace, with ``overwrite``).
+    onnx_bytes
+        The serialized ONNX model.
+    manifest
+        Its manifest; ``sha256`` and ``onnx_file`` are filled in here.
+    extra_files
+        More files to put in the folder (name -> bytes).
+    overwrite
+        Replace an existing ``dest`` (atomically).
+
+    Returns
+    -------
+    Bundle
+        The written bundle, read back and verified.
     """
     dest = Path(dest)
+    _recover(dest)
+    for stale in stale_partials(dest):
+        shutil.rmtree(stale, ignore_errors=True)
     if dest.exists() and not overwrite:
         raise BundleError(f"{dest}: already exists (pass overwrite=True / --force to replace it)")
+    if dest.exists() and not dest.is_dir():
+        raise BundleError(f"{dest}: exists and is not a bundle folder; refusing to replace it")
     if not onnx_bytes:
         raise BundleError(f"{dest}: refusing to write an empty ONNX model")
-    dest.parent.mkdir(parents=True, exist_ok=True)
     manifest.sha256 = hashlib.sha256(onnx_bytes).hexdigest()
     manifest.onnx_file = "model.onnx"
+    try:
+        manifest.check()
+    except ValueError as exc:
+        raise BundleError(f"{dest}: refusing to write an inconsistent manifest ({exc})") from None
+    manifest_text = manifest.to_json()
+    dest.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{dest.name}.", suffix=".partial", dir=dest.parent))
     umask = os.umask(0)
     os.umask(umask)
     os.chmod(tmp, 0o777 & ~umask)  # mkdtemp makes it 0700; a bundle is readable like any folder
     try:
-        files = {"model.onnx": onnx_bytes, "model.json": manifest.to_json().encode()}
+        (tmp / _PID_FILE).write_text(str(os.getpid()))
+        files = {"model.onnx": onnx_bytes, "model.json": manifest_text.encode()}
         files.update(extra_files or {})
         for name, data in files.items():
             with open(tmp / name, "wb") as fh:
                 fh.write(data)
                 fh.flush()
                 os.fsync(fh.fileno())
-        if dest.exists():
-            old = dest.with_name(f".{dest.name}.old")
-            shutil.rmtree(old, ignore_errors=True)
-            os.replace(dest, old)
-            os.replace(tmp, dest)
-            shutil.rmtree(old, ignore_errors=True)
+        _phase("files-written")
+        (tmp / _PID_FILE).unlink()
+        _fsync_dir(tmp)
+        if not dest.exists():
+            os.rename(tmp, dest)
+        elif _exchange(tmp, dest):
+            _phase("exchanged")
+            shutil.rmtree(tmp, ignore_errors=True)  # tmp now holds the old bundle
         else:
+            old = dest.with_name(f".{dest.name}.old")
+            os.replace(dest, old)
+            _phase("old-moved")
             os.replace(tmp, dest)
+            shutil.rmtree(old, ignore_errors=True)
+        _fsync_dir(dest.parent)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
+        _recover(dest)
         raise
     return load_bundle(dest)

@@ -23,8 +23,12 @@ COMMANDS: dict[str, tuple[str, str, str, str]] = {
                "checkpoint (.pth) + variant -> verified fp32 ONNX bundle (needs the 'export' extra)"),
     "quantize": ("tactile_force.export.cli", "configure_quantize", "main_quantize",
                  "fp32 bundle -> int8 static / int8 dynamic / fp16 bundle with error report"),
-    "bundle": ("tactile_force.export.cli", "configure_bundle", "main_bundle",
-               "show and verify a model bundle (manifest, hash)"),
+    "bundle": ("tactile_force.edge.cli_bundle", "configure_bundle", "main_bundle",
+               "show and verify a model bundle (manifest, hash, graph contract; no torch needed)"),
+    "calibrate-force": ("tactile_force.edge.calibrate_force", "configure", "main",
+                        "fit a per-sensor force calibration from 10-30 labelled presses into a new bundle"),
+    "compress": ("tactile_force.export.cli_compress", "configure", "main",
+                 "distil a trained model into compact students on unlabelled frames; keep the best within budget"),
     "synth": ("tactile_force.edge.synthetic.cli", "configure", "main",
               "generate a synthetic labelled DIGIT dataset in the authors' layout"),
     "calibrate-depth": ("tactile_force.edge.depth.cli", "configure", "main",
@@ -33,6 +37,21 @@ COMMANDS: dict[str, tuple[str, str, str, str]] = {
                 "list attached DIGIT / GelSight Mini / OAK devices and what is wrong with them"),
     "record": ("tactile_force.firmware_bridge.cli", "configure_record", "main_record",
                "record frames with a HID reference scale's force into the authors' dataset layout"),
+}
+
+
+#: top-level module -> the extra that provides it (a missing one gives one line and exit 2)
+_EXTRA_OF = {"torch": "export", "onnx": "export", "onnxscript": "export", "usb": "usb", "hid": "usb",
+             "depthai": "oak", "matplotlib": "bench", "cyclonedds": "ros2", "mcap": "mcap"}
+_EXTRA_HINT = {
+    "export": ("Install torch's CPU build first (pip install torch with the CPU-only wheel index that PyTorch's "
+               "install page gives for your platform; a plain 'pip install torch' pulls a multi-GB CUDA build), "
+               "then: pip install 'tactile-force[export]'"),
+    "usb": "Install it with: pip install 'tactile-force[usb]'",
+    "oak": "Install it with: pip install 'tactile-force[oak]'",
+    "bench": "Install it with: pip install 'tactile-force[bench]'",
+    "ros2": "Install it with: pip install 'tactile-force[ros2]'",
+    "mcap": "Install it with: pip install 'tactile-force[mcap]'",
 }
 
 
@@ -50,8 +69,35 @@ def _top_help() -> str:
     return "\n".join(lines)
 
 
+def _exit_code(exc: BaseException) -> tuple[int, str]:
+    """(exit code, one-line message) for an exception a command raised: 1 a check failed,
+    2 bad input or usage (a TactileForceError, an OSError on a path the user gave, a missing
+    extra); anything else is a bug: 1 with a hint to rerun with --debug."""
+    from .errors import CheckFailedError, TactileForceError
+
+    if isinstance(exc, CheckFailedError):
+        return 1, f"FAILED: {exc}"
+    if isinstance(exc, TactileForceError):
+        return 2, f"error: {exc}"
+    if isinstance(exc, ModuleNotFoundError):
+        extra = _EXTRA_OF.get((exc.name or "").split(".")[0])
+        if extra is not None:
+            return 2, f"needs the '{extra}' extra ({exc.name} is not installed). {_EXTRA_HINT[extra]}"
+    if isinstance(exc, OSError):
+        where = f"{exc.filename}: " if exc.filename else ""
+        return 2, f"error: {where}{exc.strerror or exc}"
+    return 1, (f"internal error: {type(exc).__name__}: {exc} "
+               "(please report it; rerun with --debug for the traceback)")
+
+
 def main(argv: list[str] | None = None) -> int:
+    """Run one subcommand. Exit codes: 0 success, 1 a check failed, 2 bad input or usage,
+    130 interrupted. ``--debug`` (anywhere, or TACTILE_FORCE_DEBUG=1) shows tracebacks."""
+    import os
+
     argv = list(sys.argv[1:] if argv is None else argv)
+    debug = "--debug" in argv or os.environ.get("TACTILE_FORCE_DEBUG", "") not in ("", "0")
+    argv = [a for a in argv if a != "--debug"]
     if not argv or argv[0] in ("-h", "--help", "help"):
         print(_top_help())
         return 0
@@ -65,20 +111,33 @@ def main(argv: list[str] | None = None) -> int:
         print(f"tactile-force: unknown command {name!r}\n\n{_top_help()}", file=sys.stderr)
         return 2
     module_name, configure_name, main_name, help_line = COMMANDS[name]
-    module = importlib.import_module(module_name)
-    parser = argparse.ArgumentParser(prog=f"tactile-force {name}", description=help_line)
+    try:
+        module = importlib.import_module(module_name)
+    except ModuleNotFoundError as exc:
+        extra = _EXTRA_OF.get((exc.name or "").split(".")[0])
+        if extra is None or debug:
+            raise
+        print(f"tactile-force {name}: needs the '{extra}' extra ({exc.name} is not installed). {_EXTRA_HINT[extra]}",
+              file=sys.stderr)
+        return 2
+    parser = argparse.ArgumentParser(prog=f"tactile-force {name}", description=help_line,
+                                     epilog="--debug: show the traceback of an error")
     getattr(module, configure_name)(parser)
-    args = parser.parse_args(argv[1:])
-    from .errors import TactileForceError
-
+    try:
+        args = parser.parse_args(argv[1:])
+    except SystemExit as exc:  # usage errors (2) and --help (0), also when called in-process
+        return exc.code if isinstance(exc.code, int) else 2
     try:
         return int(getattr(module, main_name)(args) or 0)
-    except TactileForceError as exc:
-        print(f"tactile-force {name}: error: {exc}", file=sys.stderr)
-        return 1
     except KeyboardInterrupt:
         print(f"tactile-force {name}: interrupted", file=sys.stderr)
         return 130
+    except Exception as exc:  # noqa: BLE001 - the error contract: one line, no traceback
+        if debug:
+            raise
+        code, message = _exit_code(exc)
+        print(f"tactile-force {name}: {message}", file=sys.stderr)
+        return code
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -1,4 +1,10 @@
-"""CLI: ``tactile-force run --scene FILE``, ``tactile-force scene show FILE``, ``tactile-force demo``."""
+"""CLI: ``tactile-force run``, ``tactile-force scene show FILE``, ``tactile-force demo``.
+
+``run`` takes a scene file (``--scene``) or builds the same scene from flags (``--source``
+...). Exit codes follow :mod:`tactile_force.edge.cli`: 0 success, 1 a check failed (every
+sensor lost mid-run), 2 bad input (a scene or flag, a missing file, a run that produced no
+reading).
+"""
 
 from __future__ import annotations
 
@@ -9,31 +15,118 @@ import os
 import sys
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import TextIO
 
 import numpy as np
 
-from .errors import SourceError
+from .errors import CheckFailedError, SceneError, SourceError
 from .reading import Flags, ForceReading
+
+#: File name of the demo's force-over-time plot (README and docs name it too).
+PLOT_NAME = "force_vs_time.png"
+
+
+def positive_int(text: str) -> int:
+    """argparse type: an integer >= 1."""
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"{v}: expected an integer >= 1")
+    return v
+
+
+def non_negative_int(text: str) -> int:
+    """argparse type: an integer >= 0."""
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"{v}: expected an integer >= 0")
+    return v
+
+
+def positive_float(text: str) -> float:
+    """argparse type: a finite number > 0."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"{v}: expected a finite number > 0")
+    return v
 
 
 # -- scene show ---------------------------------------------------------------------------
 def configure_scene(p: argparse.ArgumentParser) -> None:
     sub = p.add_subparsers(dest="action", required=True)
-    show = sub.add_parser("show", help="print the stages the scene will run (opens no device, loads no model)")
+    show = sub.add_parser("show", help="print the stages the scene will run (opens no device, loads no model); "
+                                       "exit 2 when a file it names is missing or unusable")
     show.add_argument("file", help="scene TOML file")
 
 
-def main_scene(args: argparse.Namespace) -> int:
-    from .scene import describe_scene, load_scene
+def depth_problems(scene) -> list[str]:
+    """Why the depth stage of a depth-bundle scene could not be built (mapping missing,
+    paper mode with a LUT, bad options), one message each; [] for RGB-only bundles."""
+    from .bundle import load_bundle
+    from .errors import BundleError
+    from .runtime import build_depth_stage
 
-    print("\n".join(describe_scene(load_scene(args.file))))
+    out = []
+    for b in scene.bundles:
+        try:
+            bundle = load_bundle(b)
+        except BundleError:
+            continue  # reported by bundle_problems
+        if not bundle.manifest.needs_depth:
+            continue
+        try:
+            build_depth_stage(scene.depth, bundle.manifest)
+        except Exception as exc:  # noqa: BLE001 - any reason the stage cannot be built is a problem to show
+            out.append(f"{scene.origin} [depth]: {exc}")
+        break
+    return out
+
+
+def main_scene(args: argparse.Namespace) -> int:
+    from .scene import bundle_problems, describe_scene, load_scene, scene_problems
+
+    scene = load_scene(args.file, check=False)
+    print("\n".join(describe_scene(scene)))
+    problems = scene_problems(scene) + bundle_problems(scene) + depth_problems(scene)
+    for p in problems:
+        print(f"error: {p}", file=sys.stderr)
+    if problems:
+        print(f"scene {scene.origin}: {len(problems)} problem(s); 'tactile-force run' would stop on them",
+              file=sys.stderr)
+        return 2
     return 0
 
 
 # -- run ----------------------------------------------------------------------------------
 def configure_run(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--scene", required=True, help="scene TOML file (see docs/runtime.md and edge/scenes/)")
-    p.add_argument("--max-frames", type=int, default=None, help="stop after this many readings (default: scene / until sources end)")
+    p.formatter_class = argparse.RawDescriptionHelpFormatter
+    p.description = (
+        "Stream force readings from a scene file, or from one source given by flags:\n"
+        "  tactile-force run --scene edge/scenes/replay_rgbmod.toml\n"
+        "  tactile-force run --source REPLAY_DIR --bundle BUNDLE --background NO_CONTACT.png --out readings.csv\n"
+        "--source: a replay folder, a video file, digit:SERIAL, gelsight_mini[:SERIAL], camera:DEVICE or virtual.\n"
+        "Output paths are relative to the working directory. A replay with ground truth ends with RE and MAE.")
+    p.add_argument("--scene", help="scene TOML file (see docs/runtime.md and edge/scenes/)")
+    p.add_argument("--source", help="run without a scene file: the one sensor's source (see above)")
+    p.add_argument("--bundle", default=None, help="with --source: model bundle folder (default: the embedded model)")
+    p.add_argument("--background", help="with --source: no-contact image (or folder of them); "
+                                        "else learnt from the first frames")
+    p.add_argument("--fps", type=positive_float, help="with --source: camera rate, or pace a replay at this rate")
+    p.add_argument("--name", default="sensor", help="with --source: the sensor's name in readings (default: sensor)")
+    p.add_argument("--out", action="append", default=[], metavar="FILE",
+                   help="with --source: also write readings to FILE.csv, FILE.jsonl or FILE.mcap (repeatable)")
+    p.add_argument("--ros2", metavar="TOPIC", help="with --source: publish readings on this ROS 2 topic")
+    p.add_argument("--save-scene", metavar="FILE", help="write the scene that runs as a TOML file")
+    p.add_argument("--max-frames", type=non_negative_int, default=None,
+                   help="stop after this many readings (default: scene / until sources end)")
 
 
 def _summary_lines(stats, runtime) -> list[str]:
@@ -49,24 +142,121 @@ def _summary_lines(stats, runtime) -> list[str]:
     return lines
 
 
-def main_run(args: argparse.Namespace) -> int:
-    from .outputs import StdoutWriter
-    from .scene import build_scene, load_scene
+def cnn_readings(readings: list[ForceReading]) -> list[ForceReading]:
+    """Readings where the CNN gave a force and the frame has a truth > 0 N (what RE/MAE are over)."""
+    skip = Flags.NO_CONTACT | Flags.INVALID_INPUT | Flags.STALE
+    return [r for r in readings if not (r.flags & skip) and math.isfinite(r.force_n)
+            and r.truth_n is not None and r.truth_n > 0]
 
-    scene = load_scene(args.scene)
-    built = build_scene(scene)
+
+def truth_lines(readings: list[ForceReading]) -> list[str]:
+    """RE and MAE (mean +- std) over the CNN readings with truth, overall and per 1 N bin,
+    and how many frames with truth >= 1 N got no CNN reading; [] when no frame had truth."""
+    from .metrics import error_report
+
+    with_truth = [r for r in readings if r.truth_n is not None and Flags.STALE not in r.flags]
+    if not with_truth:
+        return []
+    cnn = cnn_readings(readings)
+    in_cnn = {id(r) for r in cnn}
+    missed = sum(1 for r in with_truth if r.truth_n is not None and r.truth_n >= 1.0 and id(r) not in in_cnn)
+    lines = []
+    if cnn:
+        rep = error_report([r.force_n for r in cnn], [r.truth_n for r in cnn])
+        o = rep.overall
+        lines.append(f"error vs truth over {o.n} CNN readings: RE {o.re_mean:.3f} +- {o.re_std:.3f}, "
+                     f"MAE {o.mae_mean:.3f} +- {o.mae_std:.3f} N")
+        for label, st in rep.per_bin.items():
+            lines.append(f"  {label + ' N':>8}: RE {st.re_mean:.3f} +- {st.re_std:.3f}, "
+                         f"MAE {st.mae_mean:.3f} +- {st.mae_std:.3f} N  (n={st.n})")
+    else:
+        lines.append(f"error vs truth: no CNN reading among the {len(with_truth)} frames with truth")
+    if missed:
+        lines.append(f"{missed} frame(s) with truth >= 1 N got no force estimate (no_contact or invalid_input)")
+    return lines
+
+
+class LearningStatus:
+    """A reading sink: while a gate learns its background, one status line on ``stream``
+    says so (``sensor: learning the background (frame k): keep the sensor untouched``)."""
+
+    def __init__(self, stream: TextIO | None = None) -> None:
+        self.stream = stream or sys.stderr
+        self._learning: dict[str, int] = {}
+        self._open = False
+
+    def write(self, r: ForceReading) -> None:
+        if r.detail == "learning background":
+            k = self._learning[r.sensor] = self._learning.get(r.sensor, 0) + 1
+            self.stream.write(f"\r{r.sensor}: learning the background (frame {k}): keep the sensor untouched ")
+            self.stream.flush()
+            self._open = True
+        elif self._open and r.sensor in self._learning:
+            self.stream.write(f"\r{r.sensor}: background learnt from {self._learning.pop(r.sensor)} frames"
+                              + " " * 30 + "\n")
+            self.stream.flush()
+            self._open = bool(self._learning)
+
+    def close(self) -> None:
+        if self._open:
+            self.stream.write("\n")
+            self._open = False
+
+
+def _run_scene(args: argparse.Namespace):
+    """The validated Scene for ``run``'s flags (from --scene, or built from --source)."""
+    from .scene import check_scene, load_scene, scene_from_flags
+
+    given = [f"--{k.replace('_', '-')}" for k in ("bundle", "background", "fps", "ros2")
+             if getattr(args, k) is not None] + (["--out"] if args.out else [])
+    if args.scene and args.source:
+        raise SceneError("give --scene FILE or --source SRC, not both")
+    if args.scene:
+        if given:
+            raise SceneError(f"{', '.join(given)}: only with --source; a scene file sets these itself")
+        return load_scene(args.scene)
+    if not args.source:
+        raise SceneError("give --scene FILE, or --source SRC [--bundle B] (see tactile-force run --help)")
+    scene = scene_from_flags(args.source, bundle=args.bundle or "default", background=args.background,
+                             outputs=args.out, ros2=args.ros2, name=args.name, fps=args.fps)
+    if scene.sensors[0].kind.live:
+        scene.outputs[0].live = True
+    return check_scene(scene)
+
+
+def main_run(args: argparse.Namespace) -> int:
+    from .scene import build_scene, save_scene
+
+    scene = _run_scene(args)
+    if args.save_scene:
+        print(f"wrote scene {save_scene(scene, args.save_scene)}", file=sys.stderr)
+    built = build_scene(scene, warn=lambda m: print(f"\nwarning: {m}", file=sys.stderr))
     for n in built.notes:
         print(f"note: {n}", file=sys.stderr)
     rt = built.runtime
     if not built.sinks:
+        from .outputs import StdoutWriter
+
         built.sinks.append(StdoutWriter(live=True, stream=sys.stderr, p99_ms=lambda: rt.latency()["total"]["p99"], every=4))
+    status = LearningStatus()
+    readings: list[ForceReading] = []
     limit = args.max_frames if args.max_frames is not None else (scene.max_frames or None)
     try:
-        stats = rt.run(built.sinks, max_frames=limit)
+        stats = rt.run([*built.sinks, status], max_frames=limit,
+                       on_reading=lambda r: readings.append(r) if r.truth_n is not None else None)
     finally:
+        status.close()
         built.close()
-    print("\n".join(_summary_lines(stats, rt)), file=sys.stderr)
-    return 1 if stats.source_errors == len(rt.sensors) else 0
+    print("\n".join(_summary_lines(stats, rt) + truth_lines(readings)), file=sys.stderr)
+    if stats.processed == 0:
+        why = "; ".join(f"sensor '{s.name}': {s.source.stats.frames} frames read, {s.source.stats.corrupt} corrupt"
+                        + (f", {s.error}" if s.error else "") for s in rt.sensors)
+        raise SourceError(f"the run produced no reading ({why}); frames must be 320x240 or 240x320 BGR images "
+                          "(the DIGIT frame contract)")
+    if stats.source_errors == len(rt.sensors):
+        raise CheckFailedError("every sensor was lost during the run: "
+                               + "; ".join(f"{s.name}: {s.error}" for s in rt.sensors))
+    return 0
 
 
 # -- demo ---------------------------------------------------------------------------------
@@ -115,26 +305,62 @@ def _plot(readings: list[ForceReading], path: Path) -> str:
     return "matplotlib"
 
 
+def nice_ticks(lo: float, hi: float, n: int = 6) -> list[float]:
+    """About ``n`` round tick values (1, 2, 2.5 or 5 x 10^k apart) covering [lo, hi]."""
+    span = max(hi - lo, 1e-9)
+    raw = span / max(n - 1, 1)
+    mag = 10 ** math.floor(math.log10(raw))
+    step = next(m * mag for m in (1, 2, 2.5, 5, 10) if m * mag >= raw)
+    first = math.ceil(lo / step - 1e-9) * step
+    return [round(first + k * step, 10) for k in range(int((hi - first) / step + 1e-9) + 1)]
+
+
 def _plot_cv(t: np.ndarray, est: np.ndarray, truth: np.ndarray, path: Path) -> str:
+    """The force plot drawn with OpenCV alone: axes with ticks and tick labels, axis titles,
+    a legend (grey line = truth, red dots = estimate)."""
     import cv2
 
-    w, h, m = 900, 360, 40
+    w, h = 900, 360
+    left, right, top, bottom = 70, 20, 30, 50
     img = np.full((h, w, 3), 255, np.uint8)
-    fmax = max(1.0, float(np.nanmax(np.concatenate([est, truth, [1.0]]))))
+    finite = np.concatenate([est[np.isfinite(est)], truth[np.isfinite(truth)], [1.0]])
+    fmax = max(1.0, float(finite.max()))
     tmax = max(float(t[-1]) if t.size else 1.0, 1e-6)
+    font, black, grid = cv2.FONT_HERSHEY_SIMPLEX, (0, 0, 0), (225, 225, 225)
 
-    def xy(ti, fi):
-        return int(m + ti / tmax * (w - 2 * m)), int(h - m - fi / fmax * (h - 2 * m))
+    def xy(ti: float, fi: float) -> tuple[int, int]:
+        return (int(round(left + ti / tmax * (w - left - right))),
+                int(round(h - bottom - fi / fmax * (h - top - bottom))))
 
-    cv2.rectangle(img, (m, m), (w - m, h - m), (0, 0, 0), 1)
+    for f in nice_ticks(0.0, fmax):
+        x0, y = xy(0.0, f)
+        cv2.line(img, (left, y), (w - right, y), grid, 1)
+        cv2.line(img, (left - 5, y), (left, y), black, 1)
+        label = f"{f:g}"
+        (tw, th), _ = cv2.getTextSize(label, font, 0.45, 1)
+        cv2.putText(img, label, (left - 8 - tw, y + th // 2), font, 0.45, black, 1, cv2.LINE_AA)
+    for ti in nice_ticks(0.0, tmax):
+        x, y0 = xy(ti, 0.0)
+        cv2.line(img, (x, top), (x, h - bottom), grid, 1)
+        cv2.line(img, (x, h - bottom), (x, h - bottom + 5), black, 1)
+        label = f"{ti:g}"
+        (tw, th), _ = cv2.getTextSize(label, font, 0.45, 1)
+        cv2.putText(img, label, (x - tw // 2, h - bottom + 8 + th), font, 0.45, black, 1, cv2.LINE_AA)
+    cv2.rectangle(img, (left, top), (w - right, h - bottom), black, 1)
     pts = [xy(a, b) for a, b in zip(t, truth) if np.isfinite(b)]
     if len(pts) > 1:
         cv2.polylines(img, [np.array(pts, np.int32)], False, (60, 60, 60), 2)
     for a, b in zip(t, est):
         if np.isfinite(b):
             cv2.circle(img, xy(a, b), 2, (40, 40, 220), -1)
-    cv2.putText(img, f"force (N), max {fmax:.1f}; gray = truth, red = estimate; {tmax:.1f} s",
-                (m, m - 12), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 0, 0), 1)
+    cv2.putText(img, "time (s)", (w // 2 - 30, h - 10), font, 0.5, black, 1, cv2.LINE_AA)
+    ylabel = np.full((20, 150, 3), 255, np.uint8)
+    cv2.putText(ylabel, "normal force (N)", (2, 15), font, 0.5, black, 1, cv2.LINE_AA)
+    rot = cv2.rotate(ylabel, cv2.ROTATE_90_COUNTERCLOCKWISE)
+    y0 = (h - rot.shape[0]) // 2
+    img[y0:y0 + rot.shape[0], 4:4 + rot.shape[1]] = rot
+    cv2.putText(img, "grey line: ground truth   red dots: estimate", (left, top - 10), font, 0.45, black, 1,
+                cv2.LINE_AA)
     cv2.imwrite(str(path), img)
     return "opencv"
 
@@ -142,7 +368,7 @@ def _plot_cv(t: np.ndarray, est: np.ndarray, truth: np.ndarray, path: Path) -> s
 def run_demo(source, bundle: str | os.PathLike, out_dir: str | os.PathLike, threads: int = 1,
              echo=print, every: int = 10) -> DemoSummary:
     """Play ``source`` (a FrameSource whose frames carry truth_n) through the gate and the
-    bundle, write readings.csv, force.png and summary.json to ``out_dir``."""
+    bundle, write readings.csv, force_vs_time.png (:data:`PLOT_NAME`) and summary.json to ``out_dir``."""
     from .gate import ContactGate
     from .inference import OnnxForceModel
     from .metrics import error_stats
@@ -163,8 +389,7 @@ def run_demo(source, bundle: str | os.PathLike, out_dir: str | os.PathLike, thre
 
         stats = rt.run([csv_out], on_reading=keep)
     rt.close()
-    cnn = [r for r in readings if Flags.NO_CONTACT not in r.flags and math.isfinite(r.force_n)
-           and r.truth_n is not None and r.truth_n > 0]
+    cnn = cnn_readings(readings)
     err = None
     if cnn:
         es = error_stats([r.force_n for r in cnn], [r.truth_n for r in cnn])
@@ -177,7 +402,7 @@ def run_demo(source, bundle: str | os.PathLike, out_dir: str | os.PathLike, thre
     for r in readings:
         for name in r.flags.names() or ["ok"]:
             flag_counts[name] = flag_counts.get(name, 0) + 1
-    plot_path = out / "force.png"
+    plot_path = out / PLOT_NAME
     how = _plot(readings, plot_path) if readings else "none"
     summary = DemoSummary(
         bundle=str(bundle), readings=len(readings), contact_readings=len(cnn), error=err, gate_agreement=agree,
@@ -191,24 +416,32 @@ def run_demo(source, bundle: str | os.PathLike, out_dir: str | os.PathLike, thre
 
 
 def configure_demo(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--out", default="tactile_force_demo", help="output folder (plot, readings.csv, summary.json)")
-    p.add_argument("--grasps", type=int, default=3, help="grasp sequences the virtual DIGIT plays")
+    p.add_argument("--out", default="tactile_force_demo",
+                   help=f"output folder, relative to the working directory ({PLOT_NAME}, readings.csv, summary.json)")
+    p.add_argument("--grasps", type=positive_int, default=3, help="grasp sequences the virtual DIGIT plays (>= 1)")
     p.add_argument("--seed", type=int, default=0, help="random seed of the virtual DIGIT")
     p.add_argument("--bundle", default="default", help="model bundle (default: the embedded default model)")
-    p.add_argument("--threads", type=int, default=1, help="ONNX Runtime intra-op threads")
+    p.add_argument("--threads", type=positive_int, default=1, help="ONNX Runtime intra-op threads (>= 1)")
 
 
 def main_demo(args: argparse.Namespace) -> int:
-    from .scene import default_bundle_path
+    from .scene import default_bundle_path, output_problem
 
     bundle = default_bundle_path() if args.bundle == "default" else Path(args.bundle)
+    if not (bundle / "model.json").is_file():
+        raise SceneError(f"--bundle {bundle}: not a bundle folder (expected model.json in it)")
+    out = Path(args.out).absolute()
+    if out.exists() and not out.is_dir():
+        raise SceneError(f"--out {out}: is a file; expected an output folder")
+    if problem := output_problem(out / "summary.json"):
+        raise SceneError(f"--out {out}: {problem}")
     try:
         from .synthetic import VirtualDigitSource
     except ImportError as exc:
         raise SourceError(f"the demo needs tactile_force.edge.synthetic.VirtualDigitSource ({exc})") from None
     source = VirtualDigitSource(seed=args.seed, n_grasps=args.grasps, fps=60.0)
     print(f"virtual DIGIT: {args.grasps} grasps, seed {args.seed} -> bundle {bundle}")
-    s = run_demo(source, bundle, args.out, threads=args.threads)
+    s = run_demo(source, bundle, out, threads=args.threads)
     if s.error:
         print(f"error vs truth over {s.error['n']} CNN readings: RE {s.error['re_mean']:.3f} +- {s.error['re_std']:.3f}, "
               f"MAE {s.error['mae_mean']:.3f} +- {s.error['mae_std']:.3f} N")

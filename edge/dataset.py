@@ -5,6 +5,9 @@
     root/forces/force_N.txt            first line = normal force in N
     root/meta.jsonl                    optional, ours: one JSON object per sample with "id"
 
+Labels and meta.jsonl are read by :mod:`tactile_force.edge.labels` (the one label reader:
+UTF-8, finite, 0 <= F <= 200 N), so every reader accepts and refuses the same files.
+
 Samples are paired by their number N, never by directory listing order.
 """
 
@@ -21,6 +24,9 @@ import cv2
 import numpy as np
 
 from .errors import DatasetError
+from .labels import LabelError, check_force, read_force_file, read_meta
+
+__all__ = ["AuthorsDataset", "AuthorsDatasetWriter", "LabelError", "Sample", "read_force_file", "read_image"]
 
 _IMG_RE = re.compile(r"^(\d+)\.png$")
 
@@ -36,29 +42,21 @@ class Sample:
     meta: dict = field(default_factory=dict)
 
 
-def read_force_file(path: Path) -> float:
-    """First line of ``force_N.txt`` as newtons; DatasetError naming the file otherwise."""
-    try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise DatasetError(f"{path}: force file missing (expected first line = normal force in N)") from None
-    first = text.strip().splitlines()[0].strip() if text.strip() else ""
-    try:
-        value = float(first.split()[0].rstrip(","))
-    except (ValueError, IndexError):
-        raise DatasetError(f"{path}: first line {first!r} is not a number (expected the normal force in N)") from None
-    if not np.isfinite(value):
-        raise DatasetError(f"{path}: force {value} is not finite")
-    return value
+def read_image(path: Path, channels: int = 3) -> np.ndarray:
+    """Read an 8-bit PNG with ``channels`` channels (3: BGR frame HxWx3, 1: depth image HxW).
 
-
-def read_image(path: Path, flags: int = cv2.IMREAD_COLOR) -> np.ndarray:
-    """Read a PNG with OpenCV; DatasetError naming the file if missing or undecodable."""
+    DatasetError naming the file if it is missing, undecodable, 16-bit, or has another
+    channel count: a colour image is never silently turned grey, nor a grey one colour.
+    """
     if not path.is_file():
         raise DatasetError(f"{path}: image missing")
-    img = cv2.imread(str(path), flags)
+    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
     if img is None:
         raise DatasetError(f"{path}: cannot decode image (empty, truncated or not an image)")
+    got = 1 if img.ndim == 2 else img.shape[2]
+    if img.dtype != np.uint8 or got != channels:
+        want = "3-channel BGR frame" if channels == 3 else "single-channel depth image"
+        raise DatasetError(f"{path}: {got}-channel {img.dtype} image; expected an 8-bit {want}")
     return img
 
 
@@ -79,13 +77,7 @@ class AuthorsDataset:
             raise DatasetError(f"{img_dir}: no images named N.png")
         self.ids: list[int] = ids
         self.require_depth = require_depth
-        self.meta: dict[int, dict] = {}
-        meta_path = self.root / "meta.jsonl"
-        if meta_path.is_file():
-            for line in meta_path.read_text().splitlines():
-                if line.strip():
-                    rec = json.loads(line)
-                    self.meta[int(rec["id"])] = rec
+        self.meta: dict[int, dict] = read_meta(self.root / "meta.jsonl")
 
     def __len__(self) -> int:
         return len(self.ids)
@@ -112,7 +104,7 @@ class AuthorsDataset:
         dpath = self.depth_path(n)
         depth = None
         if dpath.is_file() or self.require_depth:
-            depth = read_image(dpath, cv2.IMREAD_GRAYSCALE)
+            depth = read_image(dpath, channels=1)
         return Sample(id=n, frame=frame, force_n=self.force(n), depth=depth, meta=self.meta.get(n, {}))
 
     def __getitem__(self, i: int) -> Sample:
@@ -149,8 +141,10 @@ class AuthorsDatasetWriter:
 
     def write(self, frame: np.ndarray, force_n: float, depth: np.ndarray | None = None,
               meta: dict | None = None, n: int | None = None) -> int:
-        """Write one sample; returns its id N."""
+        """Write one sample; returns its id N. LabelError before anything is written when
+        ``force_n`` is not a valid label (finite, 0..MAX_FORCE_N N)."""
         n = self.next_id if n is None else n
+        force_n = check_force(force_n, f"{self.root} sample {n}")
         ok, png = cv2.imencode(".png", frame)
         if not ok:
             raise DatasetError(f"cannot encode frame {n} as PNG (shape {frame.shape}, dtype {frame.dtype})")

@@ -15,6 +15,11 @@ class FrameError(TactileForceError, ValueError):
     """A frame has the wrong shape, dtype, colour order or content."""
 
 
+class CheckFailedError(TactileForceError):
+    """A check the user asked for failed (parity, verify, latency budget) or a run lost
+    every sensor: the CLI exits 1, where bad input exits 2."""
+
+
 class BundleError(TactileForceError):
     """A model bundle is missing, truncated, corrupted or does not match its manifest."""
 

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from .bundle import Bundle, load_bundle
+from .manifest import InputKind
 from .errors import BundleError, FrameError
 from .frames import FRAME_COLS, FRAME_ROWS, check_batch
 
@@ -34,11 +35,19 @@ class OnnxForceModel:
 
     backend = "cpu"
 
-    def __init__(self, bundle: Bundle | str | os.PathLike, threads: int = 1, warmup: int = 2) -> None:
+    def __init__(self, bundle: Bundle | str | os.PathLike, threads: int = 1, warmup: int = 2,
+                 calibrate: bool = True) -> None:
         import onnxruntime as ort
 
         self.bundle = bundle if isinstance(bundle, Bundle) else load_bundle(bundle)
         m = self.bundle.manifest
+        # Per-sensor force calibration (manifest force_calibration), applied to every output;
+        # calibrate=False gives the raw estimate (what calibrate-force fits on).
+        cal = getattr(m, "force_calibration", None)
+        if cal is not None and cal.model_sha256 and cal.model_sha256 != m.sha256:
+            raise BundleError(f"{self.bundle.path}: force_calibration was fitted for model sha256 "
+                              f"{cal.model_sha256[:12]}..., not this bundle's {m.sha256[:12]}...; re-run calibrate-force")
+        self.calibration = cal if calibrate else None
         if threads < 1:
             raise ValueError(f"threads={threads}: expected >= 1 intra-op threads")
         self.threads = threads
@@ -52,24 +61,11 @@ class OnnxForceModel:
             self.session = ort.InferenceSession(str(self.bundle.onnx_path), so, providers=["CPUExecutionProvider"])
         except Exception as exc:  # ORT raises its own Fail/InvalidGraph types
             raise BundleError(f"{self.bundle.onnx_path}: ONNX Runtime cannot load the model ({exc})") from None
-        graph_inputs = {i.name: i for i in self.session.get_inputs()}
-        by_kind = {s.kind: s for s in m.inputs}
-        if not by_kind.keys() & {"rgb", "depth"}:
-            raise BundleError(f"{self.bundle.path}: manifest declares neither an 'rgb' nor a 'depth' input")
-        for spec in m.inputs:
-            gi = graph_inputs.get(spec.name)
-            if gi is None:
-                raise BundleError(f"{self.bundle.path}: manifest input {spec.name!r} is not in the ONNX graph "
-                                  f"(graph inputs: {sorted(graph_inputs)}); model and manifest do not match")
-            if gi.type != "tensor(uint8)":
-                raise BundleError(f"{self.bundle.path}: graph input {spec.name!r} is {gi.type}; the bundle contract is uint8")
-        self.rgb_name = by_kind["rgb"].name if "rgb" in by_kind else None  # None: D / Dmod (depth only)
-        self.depth_name = by_kind["depth"].name if "depth" in by_kind else None
-        if m.needs_depth and self.depth_name is None:
-            raise BundleError(f"{self.bundle.path}: variant {m.variant!r} needs a 'depth' input but the manifest has none")
+        check_graph_contract(self.bundle, self.session)
+        rgb_spec, depth_spec = m.input(InputKind.RGB), m.input(InputKind.DEPTH)
+        self.rgb_name = rgb_spec.name if rgb_spec else None  # None: D / Dmod (depth only)
+        self.depth_name = depth_spec.name if depth_spec else None
         self.output_name = m.output.name
-        if self.output_name not in {o.name for o in self.session.get_outputs()}:
-            raise BundleError(f"{self.bundle.path}: manifest output {self.output_name!r} is not a graph output")
         # Allocated once; predict copies into the first N rows.
         self._rgb = np.zeros((MAX_BATCH, *RGB_SHAPE), np.uint8) if self.rgb_name else None
         self._depth = np.zeros((MAX_BATCH, *DEPTH_SHAPE), np.uint8) if self.depth_name else None
@@ -82,6 +78,11 @@ class OnnxForceModel:
     @property
     def needs_depth(self) -> bool:
         return self.depth_name is not None
+
+    def close(self) -> None:
+        """Release the ONNX Runtime session (idempotent)."""
+        self._bindings = []
+        self.session = None  # type: ignore[assignment]
 
     def _feed(self, n: int) -> dict[str, np.ndarray]:
         feed = {self.rgb_name: self._rgb[:n]} if self._rgb is not None else {}
@@ -110,7 +111,10 @@ class OnnxForceModel:
         """Forces (n,) float32 for the first n rows of the input buffers (a view: copy to keep)."""
         self.session.run_with_iobinding(self._bindings[n - 1])
         out = self._outs[n - 1]
-        return out.reshape(-1) if out.dtype == np.float32 else out.astype(np.float32).reshape(-1)
+        forces = out.reshape(-1) if out.dtype == np.float32 else out.astype(np.float32).reshape(-1)
+        if self.calibration is not None:
+            self.calibration.apply_inplace(forces)  # in the bound buffer, overwritten by the next run
+        return forces
 
     def predict(self, rgb: np.ndarray | None, depth: np.ndarray | None = None) -> np.ndarray:
         """Forces in newtons, (N,) float32, for rgb (N,320,240,3) uint8 BGR and, for
@@ -134,15 +138,52 @@ class OnnxForceModel:
 
 
 def error_score(bundle: Bundle) -> float:
-    """Lower is more accurate: the manifest's relative error vs ground truth (re_mean),
-    else its MAE in N; inf when the manifest records neither."""
-    err = bundle.manifest.error or {}
-    for scope in (err, err.get("vs_truth") or {}, err.get("truth") or {}):
-        for key in ("re_mean", "mae_mean", "mae_n"):
-            v = scope.get(key) if isinstance(scope, dict) else None
-            if isinstance(v, (int, float)) and np.isfinite(v):
-                return float(v)
-    return float("inf")
+    """Lower is more accurate: RE vs the labels in the manifest's error report; inf if absent."""
+    return bundle.manifest.error_score()
+
+
+def _dims(shape: list) -> list[int | None]:
+    return [d if isinstance(d, int) and d > 0 else None for d in shape]
+
+
+def check_graph_contract(bundle: Bundle, session) -> None:
+    """Refuse a graph that does not fit the frame contract its manifest declares.
+
+    Every graph input must be a manifest input: uint8, (batch, 320, 240, C) with a
+    dynamic batch and C = 3 for ``rgb``, 1 for ``depth``; the output must be the manifest's
+    float32 force. Raises :class:`BundleError` naming the input and what was expected.
+    """
+    m = bundle.manifest
+    where = bundle.path
+    graph_inputs = {i.name: i for i in session.get_inputs()}
+    declared = {s.name: s for s in m.inputs}
+    for name, spec in declared.items():
+        gi = graph_inputs.get(name)
+        if gi is None:
+            raise BundleError(f"{where}: manifest input {name!r} is not in the ONNX graph "
+                              f"({spec.kind.value}; graph inputs: {sorted(graph_inputs)}); model and manifest do not match. "
+                              f"A {m.variant.value!r} bundle needs the inputs {[s.kind.value for s in m.inputs]}")
+        if gi.type != "tensor(uint8)":
+            raise BundleError(f"{where}: graph input {name!r} is {gi.type}; the bundle contract is uint8")
+        dims = _dims(list(gi.shape))
+        want = [FRAME_ROWS, FRAME_COLS, spec.channels]
+        if len(dims) != 4 or dims[1:] != want:
+            raise BundleError(f"{where}: graph input {name!r} has shape {list(gi.shape)}; the {spec.kind.value} "
+                              f"contract is (batch, {FRAME_ROWS}, {FRAME_COLS}, {spec.channels}) NHWC"
+                              + (" (it looks transposed: 240x320)" if dims[1:3] == [FRAME_COLS, FRAME_ROWS] else ""))
+        if dims[0] is not None and dims[0] < MAX_BATCH:
+            raise BundleError(f"{where}: graph input {name!r} has a fixed batch of {dims[0]}; the runtime needs a "
+                              f"dynamic batch (up to {MAX_BATCH} frames, both fingers): re-export the model")
+    extra = sorted(set(graph_inputs) - set(declared))
+    if extra:
+        raise BundleError(f"{where}: the ONNX graph has input(s) {extra} that the manifest does not declare "
+                          f"(declared: {sorted(declared)}); model and manifest do not match")
+    outs = {o.name: o for o in session.get_outputs()}
+    out = outs.get(m.output.name)
+    if out is None:
+        raise BundleError(f"{where}: manifest output {m.output.name!r} is not a graph output ({sorted(outs)})")
+    if out.type not in ("tensor(float)", "tensor(float16)"):
+        raise BundleError(f"{where}: graph output {m.output.name!r} is {out.type}; expected float32 newtons")
 
 
 @dataclass
@@ -167,6 +208,20 @@ def measure_p99_ms(model: OnnxForceModel, runs: int = 30) -> float:
     return float(np.percentile(times, 99))
 
 
+def pick_from_ladder(keys: list[str], p99_ms: dict[str, float], score: dict[str, float],
+                     budget_ms: float) -> tuple[str, str]:
+    """The most accurate key (lowest score, first on ties) whose p99 fits the budget; if none
+    fits, the fastest. Returns (key, reason)."""
+    fits = [k for k in keys if p99_ms[k] <= budget_ms]
+    if fits:
+        best = min(fits, key=lambda k: (score[k], keys.index(k)))
+        return best, (f"picked {Path(best).name}: most accurate that fits (RE {score[best]:.3g}, "
+                      f"p99 {p99_ms[best]:.2f} ms <= budget {budget_ms:.2f} ms)")
+    best = min(keys, key=lambda k: p99_ms[k])
+    return best, (f"no bundle fits the {budget_ms:.2f} ms budget; picked the fastest, {Path(best).name} "
+                  f"(p99 {p99_ms[best]:.2f} ms): readings will be flagged late")
+
+
 def choose_bundle(paths: list[str | os.PathLike], budget_ms: float, threads: int = 1,
                   runs: int = 30) -> tuple[OnnxForceModel, LadderChoice]:
     """Measure each bundle's p99 and keep the most accurate one (manifest error) whose p99
@@ -178,13 +233,5 @@ def choose_bundle(paths: list[str | os.PathLike], budget_ms: float, threads: int
         m = OnnxForceModel(p, threads=threads)
         key = str(p)
         models[key], p99[key], score[key] = m, measure_p99_ms(m, runs), error_score(m.bundle)
-    fits = [k for k in models if p99[k] <= budget_ms]
-    if fits:
-        best = min(fits, key=lambda k: (score[k], list(models).index(k)))
-        reason = (f"picked {Path(best).name}: most accurate that fits (error {score[best]:.3g}, p99 {p99[best]:.2f} ms "
-                  f"<= budget {budget_ms:.2f} ms)")
-    else:
-        best = min(models, key=lambda k: p99[k])
-        reason = (f"no bundle fits the {budget_ms:.2f} ms budget; picked the fastest, {Path(best).name} "
-                  f"(p99 {p99[best]:.2f} ms): readings will be flagged late")
+    best, reason = pick_from_ladder(list(models), p99, score, budget_ms)
     return models[best], LadderChoice(Path(best), reason, p99, score)

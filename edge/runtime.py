@@ -7,13 +7,18 @@ the depth stage (depth bundles only) and one ``predict`` call for all sensors in
 - gate closed -> 0 N, ``no_contact``, the CNN is not run;
 - frames a source skipped because a newer one arrived -> ``stale`` readings (force nan);
 - a reading whose total latency exceeds ``deadline_ms`` -> ``late`` (still reported); total
-  latency runs from the frame's arrival (or, for files and virtual frames, from when read()
-  returned it) to the finished reading; ``source_ms`` is the time read() took;
+  latency runs from the frame's arrival (``TimedFrame.arrival_ns``, stamped by the source
+  when it had the frame; when read() returned it for a source that stamps none) to the
+  finished reading; ``source_ms`` is the time read() took;
 - wrong shape/dtype, NaN, empty, all-dark/all-white frame, a failed depth stage -> ``invalid_input``;
 - estimate < 1 N -> ``below_range`` (clamped at 0); >= 15 N or gel saturation seen -> ``saturated``
   (clamped at 15 N, a lower bound);
 - a source that raises SourceError gives one ``invalid_input`` reading naming the error and
   is dropped; the other sensor keeps being served.
+
+Two sensors are read side by side: each sensor's ``read()`` runs in its own grabber thread,
+which holds at most one frame read ahead, so one sensor never waits for the other's
+camera; a step serves every sensor whose frame is there (batch 2 when both are).
 
 Latency per stage is in every reading and as rolling p50/p99 (:meth:`ForceRuntime.latency`).
 Timing uses an injectable ``clock`` (ns) so tests drive it deterministically.
@@ -22,6 +27,7 @@ Timing uses an injectable ``clock`` (ns) so tests drive it deterministically.
 from __future__ import annotations
 
 import math
+import threading
 import time
 from dataclasses import asdict, dataclass, field
 from typing import Callable, Iterable, Protocol
@@ -31,10 +37,10 @@ import numpy as np
 from .errors import FrameError, SourceError
 from .frames import FRAME_SHAPE, FrameSource, TimedFrame, check_frame, exposure_problem
 from .gate import ContactGate, GateResult
+from .manifest import Manifest
 from .reading import MAX_VALID_FORCE_N, MIN_VALID_FORCE_N, Flags, ForceReading, StageLatency
 
 STAGES = ("source", "gate", "depth", "inference", "total")
-_ARRIVAL_WINDOW_NS = 1_000_000_000  # a frame stamp within 1 s before read() returned is its arrival time
 
 
 class ForceModel(Protocol):
@@ -43,6 +49,9 @@ class ForceModel(Protocol):
     needs_depth: bool
 
     def predict(self, rgb: np.ndarray, depth: np.ndarray | None = None) -> np.ndarray: ...
+
+    def close(self) -> None:
+        """Release the session / device (the runtime calls it from :meth:`ForceRuntime.close`)."""
 
 
 class ReadingSink(Protocol):
@@ -56,12 +65,15 @@ class RuntimeOptions:
     """deadline_ms: per-frame budget from frame arrival to reading (60 fps -> 16.7 ms).
     threads: ORT intra-op threads (used when the runtime loads the model).
     report_stale: emit a ``stale`` reading for every superseded frame.
-    latency_window: frames kept for the rolling p50/p99."""
+    latency_window: frames kept for the rolling p50/p99.
+    grabbers: read each sensor in its own grabber thread (None: when there are two sensors;
+    one sensor is read in the loop's thread, the lowest-latency path)."""
 
     deadline_ms: float = 16.7
     threads: int = 1
     report_stale: bool = True
     latency_window: int = 600
+    grabbers: bool | None = None
 
 
 @dataclass
@@ -116,27 +128,34 @@ class LatencyWindow:
         return {s: {"p50": float(p[0, k]), "p99": float(p[1, k])} for k, s in enumerate(STAGES)}
 
 
-def depth_options_for(options: dict | None = None, manifest=None) -> dict:
+def depth_options_for(options: dict | None = None, manifest: Manifest | None = None) -> dict:
     """DepthOptions fields for a depth bundle: the scene's ``[depth]`` table, else what the
-    bundle's manifest recorded at training time (``architecture.depth``). A mapping named
+    bundle's manifest recorded at training time (``manifest.depth``). A mapping named
     ``package:FILE`` is a file shipped in tactile_force/edge/assets (e.g. the virtual
     DIGIT's calibration that the reference depth models were trained with)."""
     from .errors import SceneError
 
     options = dict(options or {})
-    recorded = dict(((manifest.architecture or {}).get("depth") or {}) if manifest is not None else {})
-    for key, value in recorded.items():
-        if key in ("mapping", "mode", "levels_per_px", "paper_scale") and key not in options:
-            options[key] = value
+    recorded = manifest.depth if manifest is not None else None
+    if recorded is not None:
+        for key in ("mapping", "mode", "levels_per_px", "paper_scale"):
+            value = getattr(recorded, key)
+            if key not in options and value is not None:
+                options[key] = value
     if "mapping" not in options:
         raise SceneError("[depth] 'mapping' is required for depth bundles: the colour->normal .npz "
                          "(the paper MLP or a 'tactile-force calibrate-depth' result)")
-    mapping = str(options["mapping"])
-    if mapping.startswith("package:"):
+    options["mapping"] = resolve_package_path(str(options["mapping"]))
+    return options
+
+
+def resolve_package_path(path: str) -> str:
+    """``package:FILE`` -> the file shipped in tactile_force/edge/assets; other paths unchanged."""
+    if path.startswith("package:"):
         from pathlib import Path
 
-        options["mapping"] = str(Path(__file__).resolve().parent / "assets" / mapping.split(":", 1)[1])
-    return options
+        return str(Path(__file__).resolve().parent / "assets" / path.split(":", 1)[1])
+    return path
 
 
 def build_depth_stage(options: dict | None = None, manifest=None):
@@ -172,6 +191,91 @@ class _Pending:
     gate_ms: float
     depth_ms: float = 0.0
     depth: np.ndarray | None = None
+
+
+@dataclass(slots=True)
+class _Read:
+    """One read() of a source: the frame (None at the end of the stream), or the SourceError
+    it raised; t0 / t1: clock before / after the call (ns)."""
+
+    tf: TimedFrame | None
+    error: SourceError | None
+    t0: int
+    t1: int
+
+
+def _read(source: FrameSource, clock: Callable[[], int]) -> _Read:
+    t0 = clock()
+    try:
+        tf = source.read()
+    except SourceError as exc:
+        return _Read(None, exc, t0, clock())
+    return _Read(tf, None, t0, clock())
+
+
+class _Grabbers:
+    """One reader thread per sensor, each holding at most one read ahead (a one-slot
+    hand-over: lossless for file sources; live cameras drop old frames themselves).
+    :meth:`take` waits until at least one live sensor's read is there and takes every one
+    that is; a source raising anything but SourceError re-raises in the loop's thread."""
+
+    def __init__(self, sensors: list[Sensor], clock: Callable[[], int]) -> None:
+        self._cond = threading.Condition()
+        self._slots: dict[str, _Read | None] = {s.name: None for s in sensors}
+        self._failure: BaseException | None = None
+        self._stop = False
+        self._threads = [threading.Thread(target=self._loop, args=(s, clock), name=f"read-{s.name}", daemon=True)
+                         for s in sensors]
+        for t in self._threads:
+            t.start()
+
+    def _loop(self, s: Sensor, clock: Callable[[], int]) -> None:
+        while True:
+            try:
+                r = _read(s.source, clock)
+            except BaseException as exc:  # noqa: BLE001 - handed to the loop's thread
+                with self._cond:
+                    self._failure = exc
+                    self._cond.notify_all()
+                return
+            with self._cond:
+                while self._slots[s.name] is not None and not self._stop:
+                    self._cond.wait()
+                if self._stop:
+                    return
+                self._slots[s.name] = r
+                self._cond.notify_all()
+            if r.tf is None:  # end of the stream or a source error: this sensor is done
+                return
+
+    def wait_all(self, live: list[Sensor], timeout_s: float) -> bool:
+        """Wait up to ``timeout_s`` until every live sensor's read is there; True if it is."""
+        with self._cond:
+            return self._cond.wait_for(lambda: self._failure is not None
+                                       or all(self._slots[s.name] is not None for s in live), timeout_s)
+
+    def take(self, live: list[Sensor]) -> list[tuple[Sensor, _Read]]:
+        """Every live sensor's waiting read (at least one), in sensor order."""
+        with self._cond:
+            self._cond.wait_for(lambda: self._failure is not None
+                                or any(self._slots[s.name] is not None for s in live))
+            if self._failure is not None:
+                raise self._failure
+            got = []
+            for s in live:
+                r = self._slots[s.name]
+                if r is not None:
+                    got.append((s, r))
+                    self._slots[s.name] = None
+            self._cond.notify_all()
+            return got
+
+    def stop(self, timeout_s: float = 1.0) -> None:
+        with self._cond:
+            self._stop = True
+            self._cond.notify_all()
+        for t in self._threads:
+            t.join(timeout_s)
 
 
 class ForceRuntime:
@@ -211,6 +315,10 @@ class ForceRuntime:
         self._window = LatencyWindow(self.options.latency_window)
         self._rgb = np.empty((len(sensors), *FRAME_SHAPE), np.uint8)
         self._depth = np.empty((len(sensors), FRAME_SHAPE[0], FRAME_SHAPE[1], 1), np.uint8)
+        use = self.options.grabbers
+        self._use_grabbers = len(sensors) > 1 if use is None else bool(use)
+        self._grabbers: _Grabbers | None = None
+        self._reference_frames: dict[str, list[np.ndarray]] = {}  # paper depth mode, while learning
 
     # -- public ---------------------------------------------------------------------------
     @property
@@ -225,16 +333,35 @@ class ForceRuntime:
         """Process the newest frame of every live sensor; [] once every source has ended."""
         out: list[ForceReading] = []
         pending: list[_Pending] = []
-        for s in self.sensors:
-            if s.alive:
-                p = self._acquire(s, out)
-                if p is not None:
-                    pending.append(p)
+        live = [s for s in self.sensors if s.alive]
+        if not live:
+            return out
+        if self._use_grabbers:
+            reads = self._start().take(live)
+        else:
+            reads = [(s, _read(s.source, self.clock)) for s in live]
+        for s, r in reads:
+            p = self._acquire(s, r, out)
+            if p is not None:
+                pending.append(p)
         if pending:
             self._infer(pending, out)
         for r in out:
             self._count(r)
         return out
+
+    def start(self, wait_s: float = 0.0) -> bool:
+        """Start the grabber threads (step() does on its first call) and wait up to ``wait_s``
+        seconds until every live sensor has a frame read, so the first step serves them all
+        in one batch. True when they have (always True without grabber threads)."""
+        if not self._use_grabbers:
+            return True
+        return self._start().wait_all([s for s in self.sensors if s.alive], wait_s)
+
+    def _start(self) -> _Grabbers:
+        if self._grabbers is None:
+            self._grabbers = _Grabbers(self.sensors, self.clock)
+        return self._grabbers
 
     def run(self, sinks: Iterable[ReadingSink] = (), max_frames: int | None = None,
             on_reading: Callable[[ForceReading], None] | None = None) -> RuntimeStats:
@@ -253,8 +380,17 @@ class ForceRuntime:
         return self.stats
 
     def close(self) -> None:
+        """Stop the grabber threads, close every source, then the model."""
+        if self._grabbers is not None:
+            self._grabbers.stop(timeout_s=0.0)
         for s in self.sensors:
             s.source.close()
+        if self._grabbers is not None:
+            self._grabbers.stop()
+            self._grabbers = None
+        close_model = getattr(self.model, "close", None)
+        if close_model is not None:
+            close_model()
 
     # -- internals ------------------------------------------------------------------------
     def _ms(self, a: int, b: int) -> float:
@@ -277,28 +413,26 @@ class ForceRuntime:
         self._window.add(r.latency)
         return r
 
-    def _acquire(self, s: Sensor, out: list[ForceReading]) -> _Pending | None:
-        t0 = self.clock()
-        try:
-            tf = s.source.read()
-        except SourceError as exc:
+    def _acquire(self, s: Sensor, r: _Read, out: list[ForceReading]) -> _Pending | None:
+        if r.error is not None:
+            exc = r.error
             s.alive, s.error = False, str(exc)
             self.stats.source_errors += 1
             out.append(self._reading(s, None, Flags.INVALID_INPUT, detail=f"source error: {exc}; sensor dropped"))
             return None
-        t1 = self.clock()
+        tf, t1 = r.tf, r.t1
         if tf is None:
             s.alive = False
             return None
         if self.options.report_stale:
             for index, ts in tf.meta.get("superseded", ()):
                 out.append(ForceReading(s.name, ts, index, math.nan, Flags.STALE, detail=f"superseded by frame {tf.index}"))
-        # Latency counts from when the frame was there: its arrival stamp when that is on this
-        # clock (a camera frame that waited for us, a paced replay), else when read() returned
-        # (decoding a replay file or rendering a virtual frame is not sensor latency).
-        ts = tf.timestamp_ns
-        start = ts if t1 - _ARRIVAL_WINDOW_NS <= ts <= t1 else t1
-        lat = StageLatency(source_ms=self._ms(t0, t1))
+        # Latency counts from when the source had the frame (its arrival stamp); a source
+        # that stamps none: from when read() returned it.
+        start = tf.arrival_ns if tf.arrival_ns is not None else t1
+        lat = StageLatency(source_ms=self._ms(r.t0, t1))
+        if self._grabbers is not None:
+            t1 = self.clock()  # the gate's time starts here (the grabber's read was earlier)
         try:
             frame = check_frame(tf.frame, name=f"{s.name} frame {tf.index}", shape=FRAME_SHAPE)
         except FrameError as exc:
@@ -310,6 +444,8 @@ class ForceRuntime:
                                                   detail=f"{s.name} frame {tf.index}: {problem} (LEDs off, lens covered?)"), start))
             return None
         g = s.gate.update(frame)
+        if s.depth is not None and getattr(s.depth, "needs_reference", False):
+            self._depth_reference(s, frame, g)
         t2 = self.clock()
         lat.gate_ms = self._ms(t1, t2)
         if not g.contact:
@@ -328,6 +464,16 @@ class ForceRuntime:
                 return None
             p.depth = res.depth
         return p
+
+    def _depth_reference(self, s: Sensor, frame: np.ndarray, g: GateResult) -> None:
+        """Paper depth mode: the zero-depth reference is the gate's background. The frames the
+        gate learns it from are kept and handed to the depth stage once it is learnt."""
+        keep = self._reference_frames.setdefault(s.name, [])
+        if not g.background_ready:
+            keep.append(frame.copy())
+        if s.gate.background_ready and keep:
+            s.depth.set_reference(keep)  # type: ignore[attr-defined]
+            keep.clear()
 
     def _infer(self, pending: list[_Pending], out: list[ForceReading]) -> None:
         n = len(pending)

@@ -12,6 +12,7 @@ report them as ``stale``. There is never a queue of old frames.
 
 from __future__ import annotations
 
+import logging
 import os
 import re
 import threading
@@ -25,8 +26,10 @@ import numpy as np
 from .dataset import AuthorsDataset
 from .errors import DatasetError, SourceError
 from .frames import FRAME_SHAPE, FrameSource, TimedFrame
+from .labels import LabelError, read_force_file
 
 Clock = Callable[[], int]
+_log = logging.getLogger(__name__)
 
 
 def orient_digit(frame: np.ndarray) -> np.ndarray:
@@ -203,7 +206,7 @@ class CameraSource(FrameSource):
                                    f"(undecodable or not {self.size[0]}x{self.size[1]})")
                 return None
             self._corrupt = 0
-            item = TimedFrame(np.ascontiguousarray(frame), ts, self._index)
+            item = TimedFrame(np.ascontiguousarray(frame), ts, self._index, arrival_ns=ts)
             self._index += 1
             return item
 
@@ -281,10 +284,10 @@ def _natural_key(p: Path) -> tuple:
 class _FileSequenceSource(FrameSource):
     """Base for finite file sources: optional real-time pacing at ``fps``.
 
-    Unpaced (fps=None): every frame is returned, stamped with the clock at read time.
-    Paced: frame i is due at t0 + i/fps; ``read()`` sleeps until the next frame is due
-    and, when the reader fell behind, skips to the newest due frame, listing the skipped
-    ones as superseded.
+    Unpaced (fps=None): every frame is returned, stamped with the clock at read time; it
+    arrives (``arrival_ns``) when it is decoded. Paced: frame i is due, and arrives, at
+    t0 + i/fps; ``read()`` sleeps until the next frame is due and, when the reader fell
+    behind, skips to the newest due frame, listing the skipped ones as superseded.
     """
 
     def __init__(self, fps: float | None, clock: Clock, sleep: Callable[[float], None]) -> None:
@@ -331,14 +334,20 @@ class _FileSequenceSource(FrameSource):
                 continue
             self.stats.frames += 1
             meta["superseded"] = superseded
-            return TimedFrame(frame, ts, i, truth, meta)
+            return TimedFrame(frame, ts, i, truth, meta, arrival_ns=ts if self.fps is not None else self._clock())
         return None
 
 
 class ReplayFolderSource(_FileSequenceSource):
     """Replay a folder: the authors' layout (``images/N.png`` + ``forces/force_N.txt``,
     truth_n from the force files, frames in order of N) or a plain folder of PNG/JPG files
-    (natural name order, no truth). ``fps=None`` replays as fast as it is read."""
+    (natural name order, no truth). ``fps=None`` replays as fast as it is read.
+
+    Labels are read by :func:`tactile_force.edge.labels.read_force_file`. A bad label
+    (missing, not UTF-8, not a number, NaN, negative, above the bound) never stops the
+    replay: the frame is yielded with ``truth_n = None`` and ``meta['label_error']``, and
+    one warning per bad label file is logged. A frame file that is gone when its turn
+    comes (folder deleted or unmounted mid-run) raises SourceError."""
 
     def __init__(self, path: str | os.PathLike, fps: float | None = None, shape: tuple[int, int, int] | None = FRAME_SHAPE,
                  name: str = "replay", clock: Clock = time.monotonic_ns, sleep: Callable[[float], None] = time.sleep) -> None:
@@ -361,6 +370,7 @@ class ReplayFolderSource(_FileSequenceSource):
         if not self._files:
             raise SourceError(f"replay folder {self.path}: no .png/.jpg frames")
         self.layout = "authors" if self._dataset is not None else "plain"
+        self._warned: set[Path] = set()
 
     def __len__(self) -> int:
         return len(self._files)
@@ -368,15 +378,22 @@ class ReplayFolderSource(_FileSequenceSource):
     def _load(self, i: int) -> tuple[np.ndarray | None, float | None, dict]:
         path = self._files[i]
         img = cv2.imread(str(path), cv2.IMREAD_COLOR)
+        if img is None and not path.is_file():
+            raise SourceError(f"replay folder {self.path}: frame {path.name} disappeared during the run "
+                              "(folder deleted, moved or unmounted?)")
         frame = _fit(img, self.shape) if img is not None else None
         truth = None
+        meta: dict = {"path": str(path)}
         if frame is not None and self._dataset is not None:
-            n = self._dataset.ids[i]
+            label = self._dataset.force_path(self._dataset.ids[i])
             try:
-                truth = self._dataset.force(n)
-            except DatasetError:
-                truth = None
-        return frame, truth, {"path": str(path)}
+                truth = read_force_file(label)
+            except LabelError as exc:
+                meta["label_error"] = str(exc)
+                if label not in self._warned:
+                    self._warned.add(label)
+                    _log.warning("%s: frame replayed without truth: %s", self.name, exc)
+        return frame, truth, meta
 
 
 class VideoFileSource(_FileSequenceSource):
@@ -396,7 +413,13 @@ class VideoFileSource(_FileSequenceSource):
         self._n = int(self._cap.get(cv2.CAP_PROP_FRAME_COUNT))
         self._pos = 0
         if self._n <= 0:
+            self._cap.release()
             raise SourceError(f"video file {self.path}: no frames")
+        w, h = int(self._cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(self._cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
+        if shape is not None and (h, w) not in (shape[:2], shape[:2][::-1]):
+            self._cap.release()
+            raise SourceError(f"video file {self.path}: frames are {w}x{h} pixels; expected {shape[1]}x{shape[0]} "
+                              f"or {shape[0]}x{shape[1]} (DIGIT frames; resize or crop the video first)")
 
     def __len__(self) -> int:
         return self._n

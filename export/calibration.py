@@ -59,6 +59,8 @@ class CalibrationData:
         """Read frames for ``variant`` from an authors'-layout dataset or a folder of PNGs."""
         variant = check_variant(variant)
         names = VARIANT_INPUTS[variant]
+        if limit is not None and (isinstance(limit, bool) or not isinstance(limit, int) or limit < 1):
+            raise CalibrationError(f"limit={limit!r}: expected a whole number of frames >= 1 (None = all frames)")
         root = Path(path)
         if not root.exists():
             raise CalibrationError(f"{root}: calibration/parity folder not found")
@@ -80,7 +82,7 @@ class CalibrationData:
             ds = AuthorsDataset(root, require_depth="depth" in names)
         except DatasetError as exc:
             raise CalibrationError(str(exc)) from None
-        ids = ds.ids[:limit] if limit else ds.ids
+        ids = ds.ids[:limit] if limit is not None else ds.ids
         rgb, depth, forces = [], [], []
         for n in progress(ids, desc=f"reading {root.name}", enabled=show):
             try:
@@ -110,11 +112,10 @@ class CalibrationData:
         if not files:
             raise CalibrationError(f"{root}: no .png frames found (expected 320x240 "
                                    + ("BGR frames" if kind == "rgb" else "8-bit depth images") + ")")
-        files = files[:limit] if limit else files
-        flag = cv2.IMREAD_COLOR if kind == "rgb" else cv2.IMREAD_GRAYSCALE
+        files = files[:limit] if limit is not None else files
         frames = []
         for f in progress(files, desc=f"reading {root.name}", enabled=show):
-            img = cv2.imread(str(f), flag)
+            img = cv2.imread(str(f), cv2.IMREAD_UNCHANGED)  # never converted: a colour PNG is not a depth image
             if img is None:
                 raise CalibrationError(f"{f}: cannot read image (unreadable, empty or truncated PNG)")
             frames.append(_checked(img, f, 3 if kind == "rgb" else 1))
@@ -126,6 +127,14 @@ def _checked(img: np.ndarray | None, path: Path, c: int) -> np.ndarray:
         raise CalibrationError(f"{path}: image missing")
     if img.ndim == 2:
         img = img[:, :, None]
+    got = img.shape[2] if img.ndim == 3 else 0
+    if got != c:
+        what = ("the model takes single-channel 8-bit depth images (filt_img_depth/depth_img_N.png), "
+                f"not {'colour frames' if got >= 3 else f'{got}-channel images'}; give the depth images or "
+                "a dataset in the authors' layout") if c == 1 else \
+               (f"the model takes 3-channel BGR colour frames, not {got}-channel images (a grey or "
+                "depth image is not a tactile frame)")
+        raise CalibrationError(f"{path}: {got}-channel image; {what}")
     want = (FRAME_SHAPE[0], FRAME_SHAPE[1], c)
     if img.shape != want or img.dtype != np.uint8:
         raise CalibrationError(f"{path}: image is {img.shape} {img.dtype}; expected {want} uint8 "

@@ -25,6 +25,31 @@ def _fraction(text: str) -> float:
         raise argparse.ArgumentTypeError(f"{text!r} is not a number or a fraction like 1/4") from None
 
 
+def _whole(lo: int):
+    """argparse type: a whole number >= ``lo`` (argparse turns the error into exit 2)."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+        if value < lo:
+            raise argparse.ArgumentTypeError(f"{value} is too small; expected a whole number >= {lo}")
+        return value
+    return parse
+
+
+def _opset(text: str) -> int:
+    """argparse type: an ONNX opset from 17 to the newest one the installed onnx package knows."""
+    value = _whole(17)(text)
+    import onnx
+
+    newest = onnx.defs.onnx_opset_version()
+    if value > newest:
+        raise argparse.ArgumentTypeError(f"{value}: the installed onnx {onnx.__version__} knows opsets up to {newest}; "
+                                         "expected 17..{newest} (default 18)".replace("{newest}", str(newest)))
+    return value
+
+
 # ---------------------------------------------------------------- export
 
 def configure_export(p: argparse.ArgumentParser) -> None:
@@ -51,7 +76,9 @@ def configure_export(p: argparse.ArgumentParser) -> None:
                    help="frames for the torch-vs-ONNX check: a dataset in the authors' layout (images/N.png, "
                         "filt_img_depth/, forces/) or a folder of PNGs. Default: random frames (noted in the manifest)")
     p.add_argument("--tolerance", type=float, default=1e-4, help="parity tolerance in N (default 1e-4)")
-    p.add_argument("--opset", type=int, default=18, help="ONNX opset, >= 17 (default 18)")
+    p.add_argument("--opset", type=_opset, default=18,
+                   help="ONNX opset, 17 up to the newest the installed onnx knows (default 18); the manifest records "
+                        "the opset the graph really declares")
     p.add_argument("--trained-on", default="", help="free text recorded as the weights' provenance")
     p.add_argument("--force", action="store_true", help="replace --out if it exists")
     p.add_argument("--no-fold-preprocess", action="store_true",
@@ -67,12 +94,11 @@ def main_export(args: argparse.Namespace) -> int:
                          overwrite=args.force, trained_on=args.trained_on,
                          fold_preprocess=not args.no_fold_preprocess)
     b = export_bundle(args.checkpoint, args.out, opts)
-    m = b.manifest
-    print(f"wrote {b.path}  ({m.variant}, fp32, width {m.architecture['width']}, input scale "
-          f"{m.architecture['input_scale']:g}, {m.architecture['gmacs']} GMACs)")
-    print(f"parity vs torch: max |diff| {m.parity['max_abs_diff_n']:.2e} N on {m.parity['frames']} frames "
-          f"({m.parity['data']})")
-    print(f"export took {m.provenance['export_seconds']} s")
+    from tactile_force.edge.cli_bundle import describe_manifest
+
+    print(f"wrote {b.path}  (export took {b.manifest.provenance.export_seconds} s)")
+    for line in describe_manifest(b)[1:]:
+        print(line)
     return 0
 
 
@@ -110,107 +136,28 @@ def configure_quantize(p: argparse.ArgumentParser) -> None:
     p.add_argument("--per-tensor", action="store_true", help="one weight scale per tensor instead of per channel")
     p.add_argument("--keep-float", nargs="+", default=[], metavar="NODE",
                    help="node names to leave in float (see 'tactile-force bundle show --nodes')")
-    p.add_argument("--min-frames", type=int, default=10, help="refuse calibration with fewer frames (default 10)")
-    p.add_argument("--max-frames", type=int, default=500, help="use at most this many calibration frames")
+    p.add_argument("--min-frames", type=_whole(1), default=10,
+                   help="refuse calibration with fewer frames (>= 1, default 10)")
+    p.add_argument("--max-frames", type=_whole(1), default=500,
+                   help="use at most this many calibration frames (>= 1, default 500; there is no 'unlimited')")
     p.add_argument("--force", action="store_true", help="replace --out if it exists")
 
 
 def main_quantize(args: argparse.Namespace) -> int:
     from .quantize import QuantizeOptions, quantize_bundle
 
+    if args.min_frames > args.max_frames:
+        print(f"tactile-force quantize: error: --min-frames {args.min_frames} is above --max-frames "
+              f"{args.max_frames}; expected min <= max", file=sys.stderr)
+        return 2
     opts = QuantizeOptions(mode=args.mode, method=args.method, per_channel=not args.per_tensor,
                            keep_float=list(args.keep_float), percentile=args.percentile, histogram_bins=args.bins,
                            min_calibration_frames=args.min_frames, max_calibration_frames=args.max_frames,
                            overwrite=args.force, show_progress=True)
     b = quantize_bundle(args.bundle, args.out, opts, calibration=args.calib, eval_data=args.eval)
-    m = b.manifest
-    print(f"wrote {b.path}  ({m.variant}, {m.precision}, kept float: {', '.join(m.quantization['kept_float'])})")
-    err = m.error
-    if err:
-        v = err["vs_fp32"]
-        print(f"vs fp32 on {err['frames']} frames: max |diff| {v['max_abs_diff_n']:.4f} N, "
-              f"mean {v['mean_abs_diff_n']:.4f} N")
-        gt = err.get("vs_ground_truth")
-        if gt:
-            for k in ("fp32", "quantized"):
-                s = gt[k]
-                print(f"vs ground truth ({k}): RE {s['re_mean']:.3f} +- {s['re_std']:.3f}, "
-                      f"MAE {s['mae_mean']:.3f} +- {s['mae_std']:.3f} N")
-    return 0
+    from tactile_force.edge.cli_bundle import describe_manifest
 
-
-# ---------------------------------------------------------------- bundle
-
-def configure_bundle(p: argparse.ArgumentParser) -> None:
-    p.formatter_class = argparse.RawDescriptionHelpFormatter
-    p.description = ("Inspect a model bundle.\n\n"
-                     "  show PATH     print the manifest summary (--json for all of it, --nodes for node names)\n"
-                     "  verify PATH   check the sha256 and run the model once in ONNX Runtime; exit 1 if anything is off")
-    p.add_argument("action", choices=("show", "verify"))
-    p.add_argument("path", type=Path, help="bundle folder, or NAME.onnx with its NAME.json")
-    p.add_argument("--json", action="store_true", help="show: print the full manifest as JSON")
-    p.add_argument("--nodes", action="store_true", help="show: list the graph's node names and op types")
-
-
-def main_bundle(args: argparse.Namespace) -> int:
-    from tactile_force.edge.bundle import load_bundle
-
-    if args.action == "verify":
-        return _verify(args.path)
-    b = load_bundle(args.path)
-    m = b.manifest
-    if args.json:
-        print(m.to_json(), end="")
-        return 0
-    print(f"bundle    {b.path}  (sha256 {m.sha256[:16]}... verified)")
-    print(f"variant   {m.variant}   precision {m.precision}")
-    for s in m.inputs:
-        print(f"input     {s.name}: {s.shape} {s.dtype} {s.layout} {s.colour_order}")
-    print(f"output    {m.output.name}: {m.output.shape} {m.output.dtype} [{m.output.unit}]")
-    print(f"graph     {'; '.join(m.preprocessing_in_graph)}")
-    a = m.architecture
-    if a:
-        print(f"network   width {a.get('width')}, input scale {a.get('input_scale')}, input {a.get('network_input_hw')}, "
-              f"{a.get('gmacs')} GMACs, head folded: {a.get('head_folded')}")
-    if m.parity:
-        print(f"parity    max |ORT - torch| {m.parity['max_abs_diff_n']:.2e} N on {m.parity['frames']} frames")
-    if m.quantization:
-        q = m.quantization
-        print(f"quant     {q.get('format')}, method {q.get('method', '-')}, per-channel {q.get('per_channel')}, "
-              f"kept float {q.get('kept_float')}")
-    if m.error:
-        v = m.error["vs_fp32"]
-        print(f"error     vs fp32 max {v['max_abs_diff_n']:.4f} N, mean {v['mean_abs_diff_n']:.4f} N "
-              f"({m.error['frames']} frames)")
-    print(f"weights   {json.dumps(m.provenance)}")
-    if args.nodes:
-        import onnx
-
-        for n in onnx.load(str(b.onnx_path)).graph.node:
-            print(f"  {n.op_type:<18} {n.name}")
-    return 0
-
-
-def _verify(path: Path) -> int:
-    import numpy as np
-    import onnxruntime as ort
-
-    from tactile_force.edge.bundle import load_bundle
-    from tactile_force.edge.errors import BundleError
-
-    b = load_bundle(path)
-    try:
-        sess = ort.InferenceSession(str(b.onnx_path), providers=["CPUExecutionProvider"])
-    except Exception as exc:  # ORT raises its own exception types for corrupted graphs
-        raise BundleError(f"{b.onnx_path}: ONNX Runtime cannot load it ({str(exc).splitlines()[0][:200]})") from None
-    names = {i.name for i in sess.get_inputs()}
-    want = {s.name for s in b.manifest.inputs}
-    if names != want:
-        raise BundleError(f"{b.onnx_path}: graph inputs {sorted(names)} do not match the manifest's {sorted(want)}")
-    feed = {s.name: np.zeros([2] + list(s.shape[1:]), dtype=np.uint8) for s in b.manifest.inputs}
-    out = sess.run([b.manifest.output.name], feed)[0]
-    if out.dtype != np.float32 or out.reshape(-1).shape != (2,) or not np.all(np.isfinite(out)):
-        raise BundleError(f"{b.onnx_path}: output {out.shape} {out.dtype} is not 2 finite float32 forces for 2 frames")
-    print(f"ok: {b.path} ({b.manifest.variant}, {b.manifest.precision}) sha256 matches, runs, output float32 N",
-          file=sys.stdout)
+    print(f"wrote {b.path}")
+    for line in describe_manifest(b)[1:]:
+        print(line)
     return 0

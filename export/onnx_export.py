@@ -23,7 +23,9 @@ import numpy as np
 import torch
 from torch import nn
 
-from tactile_force.edge.bundle import Bundle, Manifest, TensorSpec, write_bundle
+from tactile_force.edge.bundle import Bundle, write_bundle
+from tactile_force.edge.manifest import (Architecture, InputKind, InputSpec, Manifest, OutputSpec, Parity, Precision,
+                                        Provenance, Variant)
 from tactile_force.edge.errors import TactileForceError
 
 from .calibration import CalibrationData, random_frames
@@ -97,6 +99,14 @@ class _Pair(nn.Module):
         return self.net(rgb, depth)
 
 
+def written_opset(onnx_bytes: bytes) -> int:
+    """The default-domain opset a serialized ONNX model really declares."""
+    import onnx
+
+    model = onnx.load_from_string(onnx_bytes)
+    return next((int(o.version) for o in model.opset_import if o.domain in ("", "ai.onnx")), 0)
+
+
 def to_onnx(net: ForceNet, opset: int = 18) -> bytes:
     """Export a ForceNet to ONNX bytes: uint8 NHWC inputs, dynamic batch, output 'force_n' (N,)."""
     if opset < 17:
@@ -163,18 +173,17 @@ def check_parity(net: ForceNet, model_bytes: bytes, data: CalibrationData, tol_n
     return res
 
 
-def _input_specs(variant: str) -> list[TensorSpec]:
+def _input_specs(variant: str) -> list[InputSpec]:
     specs = []
     for n in VARIANT_INPUTS[variant]:
         rgb = n == "rgb"
-        specs.append(TensorSpec(name=n, shape=[-1, 320, 240, 3 if rgb else 1], dtype="uint8", kind=n, layout="NHWC",
-                                colour_order="BGR" if rgb else "GRAY", scaling="x / 255 inside the graph"))
+        specs.append(InputSpec(name=n, kind=InputKind(n), shape=[-1, 320, 240, 3 if rgb else 1],
+                               colour_order="BGR" if rgb else "GRAY"))
     return specs
 
 
-def output_spec() -> TensorSpec:
-    return TensorSpec(name=OUTPUT_NAME, shape=[-1], dtype="float32", kind="force", layout="N", colour_order="",
-                      scaling="", unit="N")
+def output_spec() -> OutputSpec:
+    return OutputSpec(name=OUTPUT_NAME)
 
 
 def preprocessing_steps(spec: ModelSpec, folded: bool = False) -> list[str]:
@@ -242,18 +251,24 @@ def export_bundle(source: str | os.PathLike | nn.Module, dest: str | os.PathLike
 
     macs = count_macs(onnx.load_from_string(onnx_bytes))
     r, c = network_hw(spec.input_scale)
+    known = {k: ckpt_v for k, ckpt_v in prov.items() if k in ("checkpoint", "checkpoint_sha256", "checkpoint_format",
+                                                             "note")}
+    epochs = prov.get("epochs")
     manifest = Manifest(
-        variant=spec.variant, precision="fp32", inputs=_input_specs(spec.variant), output=output_spec(),
-        name=options.name or dest.name,
-        preprocessing_in_graph=preprocessing_steps(spec, options.fold_preprocess),
-        architecture={"family": "resnet18", "width": spec.width, "input_scale": spec.input_scale,
-                      "network_input_hw": [r, c], "head_folded": options.fold_head,
-                      "preprocess_folded": options.fold_preprocess, "gmacs": round(macs.gmacs, 4),
-                      "macs_by_op": macs.by_op, "params": int(sum(p.numel() for p in model.parameters())),
-                      "opset": options.opset},
-        parity=parity.as_dict(),
-        provenance={**prov, "trained_on": options.trained_on or prov.get("trained_on", "unknown"),
-                    "torch": torch.__version__, "exporter": "torch.onnx.export (dynamo)",
-                    "export_seconds": round(time.perf_counter() - t0, 2)},
+        variant=Variant(spec.variant), precision=Precision.FP32, inputs=_input_specs(spec.variant),
+        output=output_spec(), name=options.name or dest.name,
+        preprocessing=preprocessing_steps(spec, options.fold_preprocess),
+        architecture=Architecture(family="resnet18", width=spec.width, input_scale=spec.input_scale,
+                                  network_input_hw=[r, c], head_folded=options.fold_head,
+                                  preprocess_folded=options.fold_preprocess, gmacs=round(macs.gmacs, 4),
+                                  macs_by_op=dict(macs.by_op), params=int(sum(p.numel() for p in model.parameters())),
+                                  opset=written_opset(onnx_bytes)),
+        parity=Parity(max_abs_diff_n=parity.max_abs_diff_n, mean_abs_diff_n=parity.mean_abs_diff_n,
+                      frames=parity.frames, data=parity.source, tolerance_n=parity.tolerance_n),
+        provenance=Provenance(**{k: str(v) for k, v in known.items()},
+                              epochs=epochs if isinstance(epochs, int) and not isinstance(epochs, bool) else None,
+                              trained_on=str(options.trained_on or prov.get("trained_on", "unknown")),
+                              torch=torch.__version__, exporter="torch.onnx.export (dynamo)",
+                              export_seconds=round(time.perf_counter() - t0, 2)),
     )
     return write_bundle(dest, onnx_bytes, manifest, overwrite=options.overwrite)

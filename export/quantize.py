@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import contextlib
 import copy
+import dataclasses
 import inspect
 import io
 import os
@@ -26,6 +27,8 @@ import numpy as np
 from onnxruntime.quantization import CalibrationDataReader
 
 from tactile_force.edge.bundle import Bundle, load_bundle, write_bundle
+from tactile_force.edge.manifest import DiffFigures, ErrorFigures, ErrorReport, Precision, Quantization, SourceRef
+from tactile_force.edge.typed_json import from_json
 from tactile_force.edge.errors import TactileForceError, require
 from tactile_force.edge.metrics import error_stats
 from tactile_force.edge.progress import progress
@@ -178,19 +181,30 @@ def _fp16(model, out_path: Path, exclude: list[str]) -> dict:
     return {"format": "float16 weights and activations", "io": "uint8 input, float32 output kept"}
 
 
-def _error_report(fp32_bytes: bytes, q_bytes: bytes, data: CalibrationData, used_for_calibration: bool) -> dict:
+def _figures(stats) -> ErrorFigures:
+    d = stats.as_dict()
+    return ErrorFigures(**{k: d[k] for k in ("n", "re_mean", "re_std", "mae_mean", "mae_std", "n_excluded_re")})
+
+
+def _error_report(fp32_bytes: bytes, q_bytes: bytes, data: CalibrationData, used_for_calibration: bool) -> ErrorReport:
     ref = run_ort(ort_session(fp32_bytes, threads=2), data)
     got = run_ort(ort_session(q_bytes, threads=2), data)
     if not np.all(np.isfinite(got)):
         raise QuantizeError("quantized model gives non-finite forces (NaN/inf); try --method percentile or --keep-float")
     diff = np.abs(got - ref)
-    rep: dict = {"data": data.source, "frames": len(data), "same_frames_as_calibration": used_for_calibration,
-                 "vs_fp32": {"max_abs_diff_n": float(diff.max()), "mean_abs_diff_n": float(diff.mean()),
-                             **error_stats(got, ref).as_dict()}}
+    vs_fp32 = _figures(error_stats(got, ref))
+    rep = ErrorReport(data=data.source, frames=len(data), same_frames_as_calibration=used_for_calibration,
+                      vs_fp32=DiffFigures(**vars_of(vs_fp32), max_abs_diff_n=float(diff.max()),
+                                          mean_abs_diff_n=float(diff.mean())))
     if data.forces is not None:
-        rep["vs_ground_truth"] = {"quantized": error_stats(got, data.forces).as_dict(),
-                                  "fp32": error_stats(ref, data.forces).as_dict()}
+        rep.vs_truth = _figures(error_stats(got, data.forces))
+        rep.fp32_vs_truth = _figures(error_stats(ref, data.forces))
     return rep
+
+
+def vars_of(fig: ErrorFigures) -> dict:
+    """The ErrorFigures fields of ``fig`` as keyword arguments."""
+    return {f.name: getattr(fig, f.name) for f in dataclasses.fields(ErrorFigures)}
 
 
 def quantize_bundle(src: Bundle | str | os.PathLike, dest: str | os.PathLike, options: QuantizeOptions | None = None,
@@ -259,10 +273,10 @@ def quantize_bundle(src: Bundle | str | os.PathLike, dest: str | os.PathLike, op
     info.update({"kept_float": exclude, "final_layer": final[-1], "tool": "onnxruntime.quantization",
                  "op_counts": dict(sorted(op_counts(q_model).items()))})
     manifest = copy.deepcopy(m)
-    manifest.precision = o.mode
+    manifest.precision = Precision(o.mode)
     manifest.name = o.name or dest.name
-    manifest.quantization = info
-    manifest.error = _error_report(fp32_bytes, q_bytes, evaluation, same) if evaluation is not None else {}
-    manifest.provenance = {**m.provenance, "quantized_from": {"bundle": m.name, "sha256": m.sha256},
-                           "quantize_seconds": round(time.perf_counter() - t0, 2)}
+    manifest.quantization = from_json(Quantization, info, "quantization")
+    manifest.error = _error_report(fp32_bytes, q_bytes, evaluation, same) if evaluation is not None else None
+    manifest.provenance = dataclasses.replace(m.provenance, quantized_from=SourceRef(bundle=m.name, sha256=m.sha256),
+                                              quantize_seconds=round(time.perf_counter() - t0, 2))
     return write_bundle(dest, q_bytes, manifest, overwrite=o.overwrite)

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import torch
 from torch import nn
 
-from tactile_force.edge.bundle import VARIANTS
+from tactile_force.edge.manifest import VARIANTS
 from tactile_force.edge.errors import TactileForceError
 
 #: Network inputs of each variant, in forward() order; 'rgb' has 3 channels, 'depth' 1.

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
 from ..edge.errors import SourceError
@@ -63,9 +64,19 @@ def main_devices(args: argparse.Namespace) -> int:
 
 
 def configure_record(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--sensor", required=True, help="DIGIT serial (D12345), index (0) or /dev/videoN")
+    parser.description = (
+        "Record DIGIT frames labelled with a USB HID scale's force into a dataset in the authors' layout.\n\n"
+        "Recording into a folder that holds samples resumes it: first the folder is repaired (temp files and\n"
+        "frames whose label never landed are removed, a meta.jsonl line cut short by a power cut is dropped).\n"
+        "A full disk stops the recording cleanly (exit 1), keeping every sample written before it.\n"
+        "'--repair DIR' does only the repair, without any hardware attached.")
+    parser.formatter_class = argparse.RawDescriptionHelpFormatter
+    parser.add_argument("--repair", type=Path, metavar="DIR",
+                        help="repair a recording folder after a crash (no sensor or scale needed) and exit")
+    parser.add_argument("--sensor", help="DIGIT serial (D12345), index (0) or /dev/videoN (required to record)")
     parser.add_argument("--scale", default="auto", help="'auto' (first HID scale) or VID:PID in hex, e.g. 0922:8003")
-    parser.add_argument("--out", required=True, type=Path, help="dataset folder (authors' layout; resumed if present)")
+    parser.add_argument("--out", type=Path,
+                        help="dataset folder (authors' layout; resumed if present; required to record)")
     parser.add_argument("--max", type=int, default=None, help="stop after this many samples")
     parser.add_argument("--every", type=int, default=1, help="keep every n-th frame (default 1)")
     parser.add_argument("--stable-only", action="store_true", help="skip frames while the scale reports motion")
@@ -88,11 +99,43 @@ def _scale_options(text: str):
     return ScaleOptions(vendor_id=vid, product_id=pid)
 
 
+def main_repair(root: Path) -> int:
+    """``record --repair DIR``: repair, then check every label and meta line; 0 when the folder reads."""
+    from ..edge.dataset import AuthorsDataset
+    from ..edge.errors import DatasetError
+    from .recorder import repair_dataset
+
+    if not (root / "images").is_dir():
+        print(f"tactile-force record: error: --repair {root}: not a recording folder (no images/ inside)",
+              file=sys.stderr)
+        return 2
+    print(repair_dataset(root).describe())
+    try:
+        data = AuthorsDataset(root)
+        data.forces()
+    except DatasetError as exc:
+        print(f"tactile-force record: the folder still does not read: {exc}", file=sys.stderr)
+        return 1
+    print(f"{root}: {len(data)} labelled sample(s) read back")
+    return 0
+
+
 def main_record(args: argparse.Namespace) -> int:
     from .digit import DigitOptions, DigitSource
     from .hid_scale import HidScale
     from .recorder import RecordOptions, record
 
+    if args.repair is not None:
+        return main_repair(args.repair)
+    missing = [flag for flag, v in (("--sensor", args.sensor), ("--out", args.out)) if not v]
+    if missing:
+        print(f"tactile-force record: error: {' and '.join(missing)} required to record "
+              "(or --repair DIR to repair a folder)", file=sys.stderr)
+        return 2
+    for flag, v in (("--max", args.max), ("--every", args.every)):
+        if v is not None and v < 1:
+            print(f"tactile-force record: error: {flag} {v}: expected a whole number >= 1", file=sys.stderr)
+            return 2
     intensity = None
     if args.intensity:
         try:
@@ -115,11 +158,17 @@ def main_record(args: argparse.Namespace) -> int:
                                                          stable_only=args.stable_only, min_force_n=args.min_force))
         finally:
             scale.close()
-    if result.removed_unlabelled:
-        print(f"removed {len(result.removed_unlabelled)} unlabelled frame(s) left by an earlier interrupted run")
+    for rep in result.repairs:
+        if rep.changed:
+            print(f"repaired: {rep.describe()}")
     ids = result.written
     span = f" (ids {ids[0]}..{ids[-1]})" if ids else ""
     print(f"wrote {len(ids)} sample(s){span} to {result.out}; stopped: {result.stopped_by}")
     if result.skipped:
         print("skipped: " + ", ".join(f"{k}: {v}" for k, v in result.skipped.items()))
+    if result.write_failed:
+        print(f"tactile-force record: error: {result.out}: {result.stopped_by}; the {len(ids)} sample(s) written "
+              "before it are kept and readable. Free some space and run the same command again to resume.",
+              file=sys.stderr)
+        return 1
     return 0 if not result.stopped_by.startswith(("sensor lost", "scale lost")) else 1

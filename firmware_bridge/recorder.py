@@ -2,13 +2,23 @@
 
 Each sample is written by :class:`~tactile_force.edge.dataset.AuthorsDatasetWriter`, file
 by file atomically with the force file last, so a crash or unplug loses at most the frame
-in flight. Ctrl-C / SIGTERM finish the sample in flight and stop cleanly. A frame whose
-label never landed (power cut, SIGKILL) is removed when recording resumes into the folder.
+in flight. Ctrl-C / SIGTERM finish the sample in flight and stop cleanly.
+
+Repair (:func:`repair_dataset`, run when recording resumes into a folder and by
+``tactile-force record --repair DIR`` without any hardware): temp files are removed, a
+frame whose label never landed (power cut, SIGKILL, full disk) is removed, and a
+``meta.jsonl`` whose last line(s) are cut short or belong to such a frame is truncated
+after its last complete, labelled line. Truncating needs no free space, so repair also
+works on a full disk. A full disk (or any failed write) stops the recording cleanly:
+the sample in flight is dropped, every sample written before it stays readable, and
+the result says why it stopped.
 """
 
 from __future__ import annotations
 
+import errno
 import logging
+import os
 import re
 import signal
 import threading
@@ -17,8 +27,9 @@ from pathlib import Path
 from typing import Protocol
 
 from ..edge.dataset import AuthorsDatasetWriter
-from ..edge.errors import SourceError
+from ..edge.errors import DatasetError, SourceError
 from ..edge.frames import FrameSource, check_frame
+from ..edge.labels import LabelError, check_force, complete_meta_prefix
 from .hid_scale import ScaleReading
 
 log = logging.getLogger(__name__)
@@ -54,28 +65,94 @@ class RecordResult:
     skipped: dict[str, int] = field(default_factory=dict)
     removed_unlabelled: list[int] = field(default_factory=list)
     stopped_by: str = ""
+    repairs: list["RepairReport"] = field(default_factory=list)
+
+    @property
+    def write_failed(self) -> bool:
+        """True when the recording stopped because a write failed (disk full, I/O error)."""
+        return self.stopped_by.startswith(("disk full", "write failed"))
+
+
+@dataclass
+class RepairReport:
+    """What :func:`repair_dataset` changed: unlabelled frame ids removed, temp files removed,
+    bytes and lines cut from the end of ``meta.jsonl``, and the next free sample id."""
+
+    root: Path
+    next_id: int
+    removed_unlabelled: list[int] = field(default_factory=list)
+    removed_temp: list[Path] = field(default_factory=list)
+    meta_bytes_dropped: int = 0
+    meta_lines_dropped: int = 0
+
+    @property
+    def changed(self) -> bool:
+        return bool(self.removed_unlabelled or self.removed_temp or self.meta_bytes_dropped)
+
+    def describe(self) -> str:
+        """One line for a log or the console."""
+        if not self.changed:
+            return f"{self.root}: nothing to repair; next sample id {self.next_id}"
+        parts = []
+        if self.removed_unlabelled:
+            parts.append(f"removed {len(self.removed_unlabelled)} frame(s) without a label {self.removed_unlabelled}")
+        if self.removed_temp:
+            parts.append(f"removed {len(self.removed_temp)} temp file(s)")
+        if self.meta_bytes_dropped:
+            parts.append(f"dropped the last {self.meta_lines_dropped} line(s) of meta.jsonl "
+                         f"({self.meta_bytes_dropped} bytes: cut short or of a removed frame)")
+        return f"{self.root}: " + "; ".join(parts) + f"; next sample id {self.next_id}"
+
+
+def repair_dataset(root: str | os.PathLike) -> RepairReport:
+    """Make a recording folder consistent after a crash, keeping every complete sample.
+
+    Removes temp files and frames without a label, and truncates ``meta.jsonl`` after its
+    last complete line of a labelled sample (see :func:`~tactile_force.edge.labels.complete_meta_prefix`).
+    Needs no free disk space. DatasetError naming the folder when it cannot be changed.
+    """
+    root = Path(root)
+    images, forces, depth = root / "images", root / "forces", root / "filt_img_depth"
+    temps: list[Path] = []
+    try:
+        for folder in (images, forces, depth):
+            if folder.is_dir():
+                for tmp in folder.glob(".*.tmp"):
+                    tmp.unlink(missing_ok=True)
+                    temps.append(tmp)
+        img_ids = {int(m.group(1)) for p in images.glob("*.png") if (m := re.fullmatch(r"(\d+)\.png", p.name))} \
+            if images.is_dir() else set()
+        force_ids = {int(m.group(1)) for p in forces.glob("force_*.txt")
+                     if (m := re.fullmatch(r"force_(\d+)\.txt", p.name))} if forces.is_dir() else set()
+        removed = sorted(img_ids - force_ids)
+        for n in removed:
+            (images / f"{n}.png").unlink(missing_ok=True)
+            (depth / f"depth_img_{n}.png").unlink(missing_ok=True)
+        used = force_ids | (img_ids - set(removed))
+        report = RepairReport(root, (max(used) + 1 if used else 0), removed, temps)
+        meta = root / "meta.jsonl"
+        if meta.is_file():
+            data = meta.read_bytes()
+            keep = complete_meta_prefix(data, keep_ids=force_ids)
+            if keep < len(data):
+                with open(meta, "r+b") as fh:
+                    fh.truncate(keep)
+                    fh.flush()
+                    os.fsync(fh.fileno())
+                report.meta_bytes_dropped = len(data) - keep
+                report.meta_lines_dropped = data[keep:].count(b"\n") + (0 if data.endswith(b"\n") else 1)
+    except OSError as exc:
+        raise DatasetError(f"{root}: cannot repair the recording ({exc.strerror or exc})") from None
+    return report
 
 
 def prepare_output(root: Path) -> tuple[int, list[int]]:
-    """Make ``root`` ready for appending: remove temp files and frames without a label.
+    """Make ``root`` ready for appending (:func:`repair_dataset`).
 
     Returns (next free sample id, ids of unlabelled frames removed).
     """
-    images, forces, depth = root / "images", root / "forces", root / "filt_img_depth"
-    for folder in (images, forces, depth):
-        if folder.is_dir():
-            for tmp in folder.glob(".*.tmp"):
-                tmp.unlink(missing_ok=True)
-    img_ids = {int(m.group(1)) for p in images.glob("*.png") if (m := re.fullmatch(r"(\d+)\.png", p.name))} \
-        if images.is_dir() else set()
-    force_ids = {int(m.group(1)) for p in forces.glob("force_*.txt")
-                 if (m := re.fullmatch(r"force_(\d+)\.txt", p.name))} if forces.is_dir() else set()
-    removed = sorted(img_ids - force_ids)
-    for n in removed:
-        (images / f"{n}.png").unlink(missing_ok=True)
-        (depth / f"depth_img_{n}.png").unlink(missing_ok=True)
-    used = force_ids | (img_ids - set(removed))
-    return (max(used) + 1 if used else 0), removed
+    report = repair_dataset(root)
+    return report.next_id, report.removed_unlabelled
 
 
 class _StopFlag:
@@ -103,14 +180,45 @@ class _StopFlag:
 def record(source: FrameSource, reference: ForceReference, options: RecordOptions) -> RecordResult:
     """Pair each frame of ``source`` with the newest reference force and write it to ``options.out``."""
     out = Path(options.out)
-    out.mkdir(parents=True, exist_ok=True)
-    start, removed = prepare_output(out)
-    if removed:
-        log.warning("%s: removed %d frame(s) without a label left by an interrupted recording: %s",
-                    out, len(removed), removed)
-    result = RecordResult(out=out, removed_unlabelled=removed)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise DatasetError(f"{out}: cannot create the recording folder ({exc.strerror or exc})") from None
+    report = repair_dataset(out)
+    if report.changed:
+        log.warning("repaired what an interrupted recording left: %s", report.describe())
+    result = RecordResult(out=out, removed_unlabelled=list(report.removed_unlabelled), repairs=[report])
+    try:
+        writer = AuthorsDatasetWriter(out, start_id=report.next_id)
+    except OSError as exc:
+        raise DatasetError(f"{out}: cannot write the recording folder ({exc.strerror or exc})") from None
+    try:
+        _loop(source, reference, options, writer, result)
+    finally:
+        try:
+            writer.close()
+        except OSError as exc:  # the sample in flight's meta line could not be flushed
+            if not result.write_failed:
+                result.stopped_by = _write_failure(exc)
+    if result.write_failed:
+        after = repair_dataset(out)  # drop the sample in flight; truncation needs no free space
+        result.removed_unlabelled += after.removed_unlabelled
+        result.repairs.append(after)
+        log.error("%s: recording stopped: %s; %d sample(s) written this run are kept",
+                  out, result.stopped_by, len(result.written))
+    return result
+
+
+def _write_failure(exc: OSError) -> str:
+    if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+        return f"disk full: {exc.strerror or exc}"
+    return f"write failed: {exc.strerror or exc}"
+
+
+def _loop(source: FrameSource, reference: ForceReference, options: RecordOptions, writer: AuthorsDatasetWriter,
+          result: RecordResult) -> None:
     skip = result.skipped
-    with AuthorsDatasetWriter(out, start_id=start) as writer, _StopFlag(options.handle_signals) as stop:
+    with _StopFlag(options.handle_signals) as stop:
         seen = 0
         while True:
             if stop.set:
@@ -140,13 +248,16 @@ def record(source: FrameSource, reference: ForceReference, options: RecordOption
                 skip[reason] = skip.get(reason, 0) + 1
                 continue
             frame = check_frame(item.frame, name=f"frame {item.index}")
-            n = writer.write(frame, ref.force_n, meta={
-                "timestamp_ns": item.timestamp_ns, "frame_index": item.index,
-                "sensor": item.meta.get("sensor", getattr(source, "name", "")),
-                "scale_status": ref.status.name.lower(), "scale_value": ref.value, "scale_unit": ref.unit,
-                "scale_timestamp_ns": ref.timestamp_ns})
+            try:
+                n = writer.write(frame, ref.force_n, meta={
+                    "timestamp_ns": item.timestamp_ns, "frame_index": item.index,
+                    "sensor": item.meta.get("sensor", getattr(source, "name", "")),
+                    "scale_status": ref.status.name.lower(), "scale_value": ref.value, "scale_unit": ref.unit,
+                    "scale_timestamp_ns": ref.timestamp_ns})
+            except OSError as exc:
+                result.stopped_by = _write_failure(exc)
+                break
             result.written.append(n)
-    return result
 
 
 def _reject(ref: ScaleReading | None, options: RecordOptions) -> str:
@@ -158,4 +269,8 @@ def _reject(ref: ScaleReading | None, options: RecordOptions) -> str:
         return "scale in motion"
     if options.min_force_n is not None and ref.force_n < options.min_force_n:
         return "below min_force_n"
+    try:
+        check_force(ref.force_n, "scale")
+    except LabelError:
+        return "force outside the label range"
     return ""

@@ -7,7 +7,10 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
+import os
 import sys
+from pathlib import Path
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -28,8 +31,40 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
+def _problems(args: argparse.Namespace) -> list[str]:
+    """What is wrong with the arguments (before anything is rendered), one line each."""
+    out: list[str] = []
+    if args.n < 1:
+        out.append(f"--n {args.n}: expected a number of samples >= 1")
+    if args.frames_per_grasp < 1:
+        out.append(f"--frames-per-grasp {args.frames_per_grasp}: expected >= 1")
+    for flag in ("edge_fraction", "below_fraction", "above_fraction", "no_contact_fraction"):
+        v = getattr(args, flag)
+        if not (math.isfinite(v) and 0.0 <= v <= 1.0):
+            out.append(f"--{flag.replace('_', '-')} {v}: expected a share from 0 to 1")
+    if args.below_fraction + args.above_fraction > 1.0:
+        out.append("--below-fraction + --above-fraction add up to more than 1")
+    dest = Path(args.out)
+    if dest.exists() and not dest.is_dir():
+        out.append(f"--out {dest}: is a file; expected a folder to create (or an empty one)")
+    else:
+        parent = next((p for p in (dest, *dest.parents) if p.exists()), Path("."))
+        if not parent.is_dir() or not os.access(parent, os.W_OK | os.X_OK):
+            out.append(f"--out {dest}: {parent} is not a writable folder")
+    for flag in ("background", "normal_to_rgb_mlp"):
+        v = getattr(args, flag)
+        if v is not None and not Path(v).is_file():
+            out.append(f"--{flag.replace('_', '-')} {v}: file not found")
+    return out
+
+
 def main(args: argparse.Namespace) -> int:
-    """Generate the dataset and print a JSON summary."""
+    """Generate the dataset and print a JSON summary (exit 2 on bad arguments, before rendering)."""
+    problems = _problems(args)
+    if problems:
+        for p in problems:
+            print(f"tactile-force synth: error: {p}", file=sys.stderr)
+        return 2
     from .digit import VirtualDigitOptions
     from .generate import DatasetOptions, generate_dataset
     from .indenters import INDENTERS, get_indenter, paper_indenter_names

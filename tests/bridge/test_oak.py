@@ -8,7 +8,8 @@ import tarfile
 import numpy as np
 import pytest
 
-from tactile_force.edge.bundle import Manifest, TensorSpec, write_bundle
+from tactile_force.edge.bundle import write_bundle
+from tactile_force.edge.manifest import InputKind, InputSpec, Manifest, OutputSpec
 from tactile_force.edge.errors import AcceleratorUnavailableError, BundleError, FrameError
 from tactile_force.firmware_bridge import OakForceModel, OakOptions, build_nn_archive
 
@@ -21,12 +22,11 @@ except ValueError:  # sys.modules["depthai"] is None: blocked
 
 
 def _bundle(tmp_path, variant="rgbmod", precision="fp32"):
-    inputs = {"rgbmod": [TensorSpec("rgb", [-1, 320, 240, 3], "uint8")],
-              "d": [TensorSpec("depth", [-1, 320, 240, 1], "uint8", kind="depth", colour_order="GRAY")],
-              "rgbmod+d": [TensorSpec("rgb", [-1, 320, 240, 3], "uint8"),
-                           TensorSpec("depth", [-1, 320, 240, 1], "uint8", kind="depth", colour_order="GRAY")]}[variant]
+    rgb = InputSpec("rgb", InputKind.RGB, [-1, 320, 240, 3])
+    depth = InputSpec("depth", InputKind.DEPTH, [-1, 320, 240, 1], colour_order="GRAY")
+    inputs = {"rgbmod": [rgb], "d": [depth], "rgbmod+d": [rgb, depth]}[variant]
     m = Manifest(variant=variant, precision=precision, inputs=inputs, name=f"test-{variant}",
-                 output=TensorSpec("force", [-1], "float32", kind="force", layout="N", colour_order="", unit="N"))
+                 output=OutputSpec("force"))
     # The OAK path reads only the manifest; the ONNX bytes are a placeholder, never run.
     return write_bundle(tmp_path / f"b-{variant.replace('+', '_')}", b"placeholder onnx bytes", m)
 

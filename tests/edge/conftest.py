@@ -12,10 +12,13 @@ from pathlib import Path
 
 import pytest
 
-from tactile_force.edge.bundle import Manifest, TensorSpec, write_bundle
+from tactile_force.edge.bundle import write_bundle
+from tactile_force.edge.manifest import ErrorReport, InputKind, InputSpec, Manifest, OutputSpec, Provenance
 
 
-def mean_model_bytes(scale: float, bias: float, with_depth: bool, depth_scale: float = 0.0) -> bytes:
+def mean_model_bytes(scale: float, bias: float, with_depth: bool, depth_scale: float = 0.0,
+                     with_rgb: bool = True) -> bytes:
+    """A tiny real ONNX graph: force = bias + scale * mean(rgb)/255 [+ depth_scale * mean(depth)/255]."""
     onnx = pytest.importorskip("onnx", reason="building test bundles needs the 'onnx' package (dev extra)")
     from onnx import TensorProto, helper
 
@@ -30,6 +33,9 @@ def mean_model_bytes(scale: float, bias: float, with_depth: bool, depth_scale: f
              helper.make_tensor("shape", TensorProto.INT64, [2], [-1, 1])]
     inputs = [helper.make_tensor_value_info("rgb", TensorProto.UINT8, ["N", 320, 240, 3])]
     last = "f"
+    if not with_rgb:  # D / Dmod graphs read only the depth image
+        nodes = [helper.make_node("Constant", [], ["f"], value=helper.make_tensor("f0", TensorProto.FLOAT, [], [bias]))]
+        inputs = []
     if with_depth:
         inputs.append(helper.make_tensor_value_info("depth", TensorProto.UINT8, ["N", 320, 240, 1]))
         nodes += [helper.make_node("Cast", ["depth"], ["d_f"], to=TensorProto.FLOAT),
@@ -47,13 +53,12 @@ def mean_model_bytes(scale: float, bias: float, with_depth: bool, depth_scale: f
     return model.SerializeToString()
 
 
-def mean_manifest(variant: str, name: str, error: dict | None = None) -> Manifest:
-    inputs = [TensorSpec("rgb", [-1, 320, 240, 3], "uint8", kind="rgb")]
+def mean_manifest(variant: str, name: str, error: ErrorReport | None = None) -> Manifest:
+    inputs = [InputSpec("rgb", InputKind.RGB, [-1, 320, 240, 3])] if variant in ("rgbmod", "rgbmod+d") else []
     if variant != "rgbmod":
-        inputs.append(TensorSpec("depth", [-1, 320, 240, 1], "uint8", kind="depth", colour_order="GRAY"))
-    return Manifest(variant=variant, precision="fp32", inputs=inputs,
-                    output=TensorSpec("force", [-1, 1], "float32", kind="force", unit="N"),
-                    name=name, error=error or {}, provenance={"note": "test mean model, not trained"})
+        inputs.append(InputSpec("depth", InputKind.DEPTH, [-1, 320, 240, 1], colour_order="GRAY"))
+    return Manifest(variant=variant, precision="fp32", inputs=inputs, output=OutputSpec("force", [-1, 1]),
+                    name=name, error=error, provenance=Provenance(note="test mean model, not trained"))
 
 
 @pytest.fixture(scope="session")
@@ -62,10 +67,11 @@ def make_bundle(tmp_path_factory):
     root = tmp_path_factory.mktemp("bundles")
 
     def make(name: str, variant: str = "rgbmod", scale: float = 20.0, bias: float = 0.0,
-             error: dict | None = None) -> Path:
+             error: ErrorReport | None = None) -> Path:
         dest = root / name
         if not dest.exists():
-            data = mean_model_bytes(scale, bias, variant != "rgbmod", depth_scale=5.0)
+            data = mean_model_bytes(scale, bias, variant != "rgbmod", depth_scale=5.0,
+                                    with_rgb=variant in ("rgbmod", "rgbmod+d"))
             write_bundle(dest, data, mean_manifest(variant, name, error))
         return dest
 

@@ -77,16 +77,6 @@ def test_manifest_that_does_not_match_the_graph_is_refused(rgb_bundle, tmp_path)
         OnnxForceModel(bad)
 
 
-def test_ladder_picks_most_accurate_that_fits(make_bundle):
-    precise = make_bundle("ladder_fp32", error={"re_mean": 0.05})
-    rough = make_bundle("ladder_int8", error={"re_mean": 0.09})
-    model, choice = choose_bundle([rough, precise], budget_ms=1e6, runs=5)
-    assert model.bundle.path == precise and "most accurate" in choice.reason
-    assert set(choice.p99_ms) == {str(rough), str(precise)}
-    model, choice = choose_bundle([rough, precise], budget_ms=1e-9, runs=5)
-    assert "no bundle fits" in choice.reason and "fastest" in choice.reason
-
-
 # -- runtime --------------------------------------------------------------------------------
 def test_replay_of_real_aurova_frames(rgb_bundle, aurova_dir):
     src = ReplayFolderSource(aurova_dir)
@@ -202,6 +192,7 @@ def test_two_sensors_in_contact_share_one_batch(rgb_bundle, aurova_dir):
     a = ReplayFolderSource(aurova_dir)
     b = ReplayFolderSource(aurova_dir)
     rt = ForceRuntime([Sensor("left", a, _gate()), Sensor("right", b, _gate())], OnnxForceModel(rgb_bundle))
+    assert rt.start(wait_s=10.0)  # both grabber threads have a frame: one step serves both
     rl, rr = rt.step()
     assert rl.sensor == "left" and rr.sensor == "right"
     assert rl.latency.inference_ms == rr.latency.inference_ms  # one predict call, batch 2
@@ -282,9 +273,9 @@ def test_depth_bundle_runs_the_real_depth_stage_with_the_gate_mask(make_bundle, 
     ok = [r for r in readings if not r.flags & Flags.INVALID_INPUT]
     assert ok, [r.detail for r in readings]
     assert all(r.latency.depth_ms > 0 for r in ok)
-    # The depth image adds 5 N * mean(depth)/255 on top of the RGB mean: a pressed gel gives depth > 0.
-    img = cv2.imread(str(aurova_dir / "images" / "1524.png"))
-    assert readings[-1].raw_force_n > expected_force(img)
+    # The Dmod graph reads only the depth image: 5 N * mean(depth)/255, > 0 for a pressed gel.
+    assert readings[-1].raw_force_n > 0.0
+    assert readings[-1].raw_force_n > readings[0].raw_force_n  # deeper press at the end of the grasp
 
 
 def test_depth_bundle_without_mapping_is_a_clear_scene_error():

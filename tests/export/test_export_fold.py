@@ -81,19 +81,19 @@ def test_folded_graph_is_transpose_cast_pool_conv_and_gives_the_same_forces(pair
         ["force_n"], {"rgb": data.inputs["rgb"]})[0]
     a, b = run(folded), run(plain)
     assert np.ptp(b) > 1e-4 and np.abs(a - b).max() <= 1e-4
-    assert folded.manifest.parity["max_abs_diff_n"] <= 1e-4 and folded.manifest.parity["frames"] == 11
-    assert folded.manifest.parity["reference"] == "torch eager, unfolded head"
+    assert folded.manifest.parity.max_abs_diff_n <= 1e-4 and folded.manifest.parity.frames == 11
+    assert folded.manifest.parity.reference == "torch eager, unfolded head"
 
 
 def test_manifest_says_what_was_folded(pair):
     folded, plain = pair
     m = folded.manifest
-    assert m.architecture["preprocess_folded"] is True and plain.manifest.architecture["preprocess_folded"] is False
-    assert m.preprocessing_in_graph[:3] == ["NHWC -> NCHW (uint8)", "cast uint8 -> float32",
+    assert m.architecture.preprocess_folded is True and plain.manifest.architecture.preprocess_folded is False
+    assert m.preprocessing[:3] == ["NHWC -> NCHW (uint8)", "cast uint8 -> float32",
                                             "4x4 area average (AveragePool): 320x240 -> 80x60"]
-    assert "BGR -> RGB (rgb input): folded into conv1's weights" in m.preprocessing_in_graph
-    assert "divide by 255: folded into conv1's weights" in m.preprocessing_in_graph
-    assert "divide by 255" in plain.manifest.preprocessing_in_graph
+    assert "BGR -> RGB (rgb input): folded into conv1's weights" in m.preprocessing
+    assert "divide by 255: folded into conv1's weights" in m.preprocessing
+    assert "divide by 255" in plain.manifest.preprocessing
 
 
 def test_io_bound_predict_returns_fresh_arrays_that_match_the_session(pair, aurova):
@@ -116,7 +116,7 @@ def test_folded_rgbmod_d_exports_both_branches_with_parity(module_tmp, aurova):
     torch.manual_seed(6)
     b = export_bundle(build_model("rgbmod+d", 0.25).eval(), module_tmp / "fold_rgbd",
                       ExportOptions(variant="rgbmod+d", width=0.25, input_scale=0.25, parity_data=aurova))
-    assert b.manifest.parity["max_abs_diff_n"] <= 1e-4
+    assert b.manifest.parity.max_abs_diff_n <= 1e-4
     g = onnx.load(str(b.onnx_path)).graph
     assert not any(n.op_type in ("Slice", "Div") for n in g.node)
     producers = {o: n for n in g.node for o in n.output}

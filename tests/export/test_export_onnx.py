@@ -53,10 +53,10 @@ def test_manifest_describes_inputs_graph_and_provenance(rgbmod_full):
     assert (inp.name, inp.shape, inp.dtype, inp.layout, inp.colour_order) == ("rgb", [-1, 320, 240, 3], "uint8",
                                                                               "NHWC", "BGR")
     assert (m.output.name, m.output.dtype, m.output.unit) == ("force_n", "float32", "N")
-    assert "BGR -> RGB (rgb input): folded into conv1's weights" in m.preprocessing_in_graph
-    assert "divide by 255: folded into conv1's weights" in m.preprocessing_in_graph
-    assert m.architecture["head_folded"] and m.architecture["preprocess_folded"] and m.architecture["network_input_hw"] == [320, 240]
-    assert 2.5 < m.architecture["gmacs"] < 3.2  # ResNet-18 at 320x240 ~ 1.82 GMACs * (320*240)/(224*224)
+    assert "BGR -> RGB (rgb input): folded into conv1's weights" in m.preprocessing
+    assert "divide by 255: folded into conv1's weights" in m.preprocessing
+    assert m.architecture.head_folded and m.architecture.preprocess_folded and m.architecture.network_input_hw == [320, 240]
+    assert 2.5 < m.architecture.gmacs < 3.2  # ResNet-18 at 320x240 ~ 1.82 GMACs * (320*240)/(224*224)
     import hashlib
 
     assert m.provenance["checkpoint_sha256"] == hashlib.sha256(ckpt.read_bytes()).hexdigest()

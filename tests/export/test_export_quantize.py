@@ -65,7 +65,7 @@ def test_int8_static_runs_integer_convolutions_and_keeps_float_output(int8):
     ran = ort_optimized_ops(int8.onnx_path.read_bytes())
     assert ran["QLinearConv"] == 20 and ran["Conv"] == 0
     # exported with the BGR flip and 1/255 folded into conv1 (the default): that conv is quantized like the rest
-    assert int8.manifest.architecture["preprocess_folded"] and ran["Slice"] == 0 and ran["Div"] == 0
+    assert int8.manifest.architecture.preprocess_folded and ran["Slice"] == 0 and ran["Div"] == 0
     first = next(n for n in model.graph.node if n.op_type == "Conv")
     assert producers[producers[producers[first.input[0]].input[0]].input[0]].op_type == "AveragePool"
     # the final linear layer stays float: its inputs are DequantizeLinear'd, its output is not re-quantized
@@ -73,8 +73,8 @@ def test_int8_static_runs_integer_convolutions_and_keeps_float_output(int8):
     assert model.graph.output[0].type.tensor_type.elem_type == onnx.TensorProto.FLOAT
     assert model.graph.input[0].type.tensor_type.elem_type == onnx.TensorProto.UINT8
     q = int8.manifest.quantization
-    assert q["per_channel"] and q["method"] == "minmax" and q["calibration_frames"] == 11
-    assert q["final_layer"] in q["kept_float"]
+    assert q.per_channel and q.method == "minmax" and q.calibration_frames == 11
+    assert q.final_layer in q.kept_float
 
 
 def test_int8_error_vs_fp32_is_bounded_and_reported(compact, int8, aurova):
@@ -91,11 +91,11 @@ def test_int8_error_vs_fp32_is_bounded_and_reported(compact, int8, aurova):
     assert diff.max() < 0.20 * span
     assert len(np.unique(got)) == len(got)  # not snapped to a coarse grid
     err = int8.manifest.error
-    assert err["vs_fp32"]["max_abs_diff_n"] == pytest.approx(diff.max(), rel=1e-6, abs=1e-7)
+    assert err.vs_fp32.max_abs_diff_n == pytest.approx(diff.max(), rel=1e-6, abs=1e-7)
     truth = data.forces
-    gt = err["vs_ground_truth"]
-    assert gt["quantized"]["mae_mean"] == pytest.approx(error_stats(got, truth).mae_mean, rel=1e-5)
-    assert gt["quantized"]["mae_mean"] < gt["fp32"]["mae_mean"] + 0.1 * span
+    assert err.vs_truth.mae_mean == pytest.approx(error_stats(got, truth).mae_mean, rel=1e-5)
+    assert err.vs_truth.mae_mean < err.fp32_vs_truth.mae_mean + 0.1 * span
+    assert int8.manifest.error_score() == pytest.approx(err.vs_truth.re_mean)  # the ladder's key is real
 
 
 @pytest.mark.parametrize("method", ["entropy", "percentile"])
@@ -104,13 +104,13 @@ def test_other_calibration_methods(compact, module_tmp, aurova, method):
     b = quantize_bundle(compact, module_tmp / f"q_{method}", QuantizeOptions(method=method, histogram_bins=512),
                         calibration=aurova)
     q = b.manifest.quantization
-    assert q["method"] == method and q["histogram_bins"] == 512
+    assert q.method == method and q.histogram_bins == 512
     minmax = quantize_bundle(compact, module_tmp / f"q_{method}_ref", calibration=aurova)
     assert b.manifest.sha256 != minmax.manifest.sha256  # the method really changed the ranges
     # no accuracy bound here: with 11 frames and a random trunk, clipping ranges (entropy) can
     # remove the small feature changes the fitted head relies on; the figure is reported instead
-    assert np.isfinite(b.manifest.error["vs_fp32"]["max_abs_diff_n"])
-    assert b.manifest.error["vs_fp32"]["max_abs_diff_n"] > 0
+    assert np.isfinite(b.manifest.error.vs_fp32.max_abs_diff_n)
+    assert b.manifest.error.vs_fp32.max_abs_diff_n > 0
 
 
 def test_per_tensor_and_keep_float(compact, module_tmp, aurova):
@@ -119,19 +119,19 @@ def test_per_tensor_and_keep_float(compact, module_tmp, aurova):
                         calibration=aurova)
     ran = ort_optimized_ops(b.onnx_path.read_bytes())
     assert ran["QLinearConv"] == 19 and ran["Conv"] >= 1
-    assert first_conv in b.manifest.quantization["kept_float"] and not b.manifest.quantization["per_channel"]
+    assert first_conv in b.manifest.quantization.kept_float and not b.manifest.quantization.per_channel
 
 
 def test_dynamic_and_fp16(compact, module_tmp, aurova):
     dyn = quantize_bundle(compact, module_tmp / "q_dyn", QuantizeOptions(mode="int8-dynamic"), calibration=aurova)
     assert op_counts(onnx.load(str(dyn.onnx_path)))["ConvInteger"] == 20
-    assert dyn.manifest.error["vs_fp32"]["max_abs_diff_n"] < 1.5
+    assert dyn.manifest.error.vs_fp32.max_abs_diff_n < 1.5
     f16 = quantize_bundle(compact, module_tmp / "q_f16", QuantizeOptions(mode="fp16"), calibration=aurova)
     m = onnx.load(str(f16.onnx_path))
     assert m.graph.output[0].type.tensor_type.elem_type == onnx.TensorProto.FLOAT
     assert m.graph.input[0].type.tensor_type.elem_type == onnx.TensorProto.UINT8
     assert any(i.data_type == onnx.TensorProto.FLOAT16 for i in m.graph.initializer)
-    assert f16.manifest.error["vs_fp32"]["max_abs_diff_n"] < 0.05
+    assert f16.manifest.error.vs_fp32.max_abs_diff_n < 0.05
 
 
 def test_unknown_keep_float_node_is_named(compact, tmp_path, aurova):

@@ -31,13 +31,13 @@ def test_default_bundle_hash_matches_manifest(bundle):
 
 
 def test_default_bundle_says_it_is_synthetic(bundle):
-    note = bundle.manifest.provenance.get("note", "")
+    note = bundle.manifest.provenance.note
     assert "SYNTHETIC" in note and "Replace" in note
-    assert bundle.manifest.provenance.get("trained_on") == "synthetic"
+    assert bundle.manifest.provenance.trained_on == "synthetic"
 
 
 def test_default_bundle_error_on_fresh_synthetic_test_set(bundle, tmp_path):
-    claimed = bundle.manifest.error["vs_ground_truth"]["quantized"]
+    claimed = bundle.manifest.error.vs_truth
     split = paper_split("S1")
     generate_dataset(tmp_path / "fresh", DatasetOptions(n=96, seed=20261122, indenters=split.test, progress=False))
     ds = AuthorsDataset(tmp_path / "fresh")
@@ -46,7 +46,7 @@ def test_default_bundle_error_on_fresh_synthetic_test_set(bundle, tmp_path):
     pred = np.concatenate([model.predict(np.stack(frames[i:i + 2])) for i in range(0, len(frames), 2)])
     fresh = error_stats(pred, ds.forces())
     # Same indenters, new poses and forces: the error must match the claim within sampling noise.
-    print(f"fresh: {fresh}; manifest: RE {claimed['re_mean']:.3f}, MAE {claimed['mae_mean']:.3f} N")
+    print(f"fresh: {fresh}; manifest: RE {claimed.re_mean:.3f}, MAE {claimed.mae_mean:.3f} N")
     assert np.all(np.isfinite(pred))
-    assert abs(fresh.re_mean - claimed["re_mean"]) < 0.05, (fresh, claimed)
-    assert fresh.mae_mean < claimed["mae_mean"] + 0.4, (fresh, claimed)
+    assert abs(fresh.re_mean - claimed.re_mean) < 0.05, (fresh, claimed)
+    assert fresh.mae_mean < claimed.mae_mean + 0.4, (fresh, claimed)

@@ -1,0 +1,119 @@
+"""``tactile-force bundle show|verify``: inspect a model bundle on the robot (no torch needed).
+
+``verify`` exits 0 when the manifest validates, the sha256 matches, the graph fits the
+frame contract its manifest declares and one batch-2 run gives two finite forces; 1 when
+any check fails (the reason on one line).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from .typed_json import to_json
+
+
+def configure_bundle(p: argparse.ArgumentParser) -> None:
+    p.formatter_class = argparse.RawDescriptionHelpFormatter
+    p.description = ("Inspect a model bundle.\n\n"
+                     "  show PATH     print the manifest summary (--json for all of it, --nodes for node names)\n"
+                     "  verify PATH   validate the manifest, check the sha256, load the graph in ONNX Runtime\n"
+                     "                against the frame contract and run it once; exit 1 if anything is off")
+    p.add_argument("action", choices=("show", "verify"))
+    p.add_argument("path", type=Path, help="bundle folder, or NAME.onnx with its NAME.json")
+    p.add_argument("--json", action="store_true", help="show: print the full manifest as JSON")
+    p.add_argument("--nodes", action="store_true", help="show: list the graph's node names and op types (needs onnx)")
+
+
+def main_bundle(args: argparse.Namespace) -> int:
+    from .bundle import load_bundle
+    from .errors import BundleError
+
+    if args.action == "verify":
+        try:
+            return _verify(args.path)
+        except BundleError as exc:
+            print(f"tactile-force bundle verify: FAILED: {exc}", file=sys.stderr)
+            return 1
+    b = load_bundle(args.path)
+    m = b.manifest
+    if args.json:
+        print(json.dumps(to_json(m), indent=2))
+        return 0
+    for line in describe_manifest(b):
+        print(line)
+    if args.nodes:
+        from .errors import require
+
+        onnx = require("onnx", "export", "Listing graph nodes")
+        for n in onnx.load(str(b.onnx_path)).graph.node:
+            print(f"  {n.op_type:<18} {n.name}")
+    return 0
+
+
+def describe_manifest(b) -> list[str]:  # b: Bundle
+    """Human summary of a bundle's manifest, one line per section present."""
+    m = b.manifest
+    lines = [f"bundle    {b.path}  (sha256 {m.sha256[:16]}... verified, manifest format {m.format_version})",
+             f"variant   {m.variant.value}   precision {m.precision.value}"]
+    lines += [f"input     {s.name}: {s.kind.value} {s.shape} {s.dtype} {s.layout} {s.colour_order}" for s in m.inputs]
+    lines.append(f"output    {m.output.name}: {m.output.shape} {m.output.dtype} [{m.output.unit}]")
+    if m.preprocessing:
+        lines.append(f"graph     {'; '.join(m.preprocessing)}")
+    a = m.architecture
+    lines.append(f"network   {a.family} width {a.width}, input scale {a.input_scale}, input {a.network_input_hw}, "
+                 f"{a.gmacs if a.gmacs is not None else '?'} GMACs, head folded: {a.head_folded}")
+    if m.depth:
+        lines.append(f"depth     mapping {m.depth.mapping}, mode {m.depth.mode}")
+    if m.parity:
+        lines.append(f"parity    max |ORT - torch| {m.parity.max_abs_diff_n:.2e} N on {m.parity.frames} frames")
+    if m.quantization:
+        q = m.quantization
+        lines.append(f"quant     {q.format}, method {q.method or '-'}, per-channel {q.per_channel}, "
+                     f"kept float {q.kept_float}")
+    if m.error:
+        e = m.error
+        if e.vs_truth:
+            lines.append(f"error     vs labels RE {e.vs_truth.re_mean:.3f} +- {e.vs_truth.re_std:.3f}, "
+                         f"MAE {e.vs_truth.mae_mean:.3f} N ({e.vs_truth.n} frames of {e.data or '?'})")
+        if e.vs_fp32:
+            lines.append(f"error     vs fp32 max {e.vs_fp32.max_abs_diff_n:.4f} N, mean {e.vs_fp32.mean_abs_diff_n:.4f} N")
+        if e.vs_teacher:
+            lines.append(f"error     vs teacher RE {e.vs_teacher.re_mean:.3f}, MAE {e.vs_teacher.mae_mean:.3f} N")
+    if m.force_calibration:
+        c = m.force_calibration
+        lines.append(f"calib     {c.method} force calibration, {len(c.raw_n)} knots, fitted on {c.frames} frames "
+                     f"({c.data or '?'})")
+    if m.data_stats:
+        lines.append(f"data      statistics of {m.data_stats.frames} frames recorded (out-of-distribution check on)")
+    p = m.provenance
+    lines.append(f"weights   trained on {p.trained_on}; checkpoint {p.checkpoint or '-'}"
+                 + (f"; quantized from {p.quantized_from.bundle}" if p.quantized_from else "")
+                 + (f"; calibrated from {p.calibrated_from.bundle}" if p.calibrated_from else ""))
+    if p.note:
+        lines.append(f"note      {p.note}")
+    return lines
+
+
+def _verify(path: Path) -> int:
+    import numpy as np
+
+    from .errors import BundleError
+    from .inference import MAX_BATCH, OnnxForceModel
+
+    model = OnnxForceModel(path, warmup=0)  # validates manifest, hash and graph contract
+    try:
+        b = model.bundle
+        rgb = np.zeros((MAX_BATCH, 320, 240, 3), np.uint8) if model.rgb_name else None
+        depth = np.zeros((MAX_BATCH, 320, 240, 1), np.uint8) if model.needs_depth else None
+        out = model.predict(rgb, depth)
+        if out.shape != (MAX_BATCH,) or not np.all(np.isfinite(out)):
+            raise BundleError(f"{b.onnx_path}: a batch of {MAX_BATCH} blank frames gave {out!r}; "
+                              "expected finite forces (N), one per frame")
+    finally:
+        model.close()
+    print(f"ok: {b.path} ({b.variant}, {b.manifest.precision.value}) manifest valid, sha256 matches, "
+          "graph fits the frame contract, runs, output float32 N")
+    return 0
