@@ -7,6 +7,7 @@ import platform
 import shlex
 import subprocess
 import sys
+import time
 from dataclasses import dataclass
 
 
@@ -102,3 +103,88 @@ def header(title: str, command: str, machine: Machine, notes: str = "") -> str:
     if notes:
         out += [notes, ""]
     return "\n".join(out) + "\n"
+
+
+# ----------------------------------------------------------------------------- busy or not
+
+#: Share of the machine's CPU time (all cores) other processes may use during a measurement
+#: before the machine counts as busy: on an idle host it stays near 0.
+BUSY_SHARE = 0.15
+
+
+def cpu_mhz() -> float:
+    """Mean current clock of the cores (MHz) from /proc/cpuinfo; nan when unknown."""
+    try:
+        with open("/proc/cpuinfo") as f:
+            mhz = [float(line.split(":", 1)[1]) for line in f if line.startswith("cpu MHz")]
+    except (OSError, ValueError):
+        return float("nan")
+    return sum(mhz) / len(mhz) if mhz else float("nan")
+
+
+def _cpu_jiffies() -> tuple[int, int] | None:
+    """(busy, total) jiffies of all cores from /proc/stat, or None."""
+    try:
+        with open("/proc/stat") as f:
+            v = [int(x) for x in f.readline().split()[1:]]
+    except (OSError, ValueError):
+        return None
+    idle = v[3] + (v[4] if len(v) > 4 else 0)  # idle + iowait
+    return sum(v[:8]) - idle, sum(v[:8])
+
+
+def _own_cpu_s() -> float:
+    t = os.times()
+    return t.user + t.system
+
+
+@dataclass(frozen=True)
+class MachineState:
+    """What the machine did while something was measured: load average before / after
+    (1 min), mean CPU clock (MHz) before / after, and the share of all cores' time that
+    OTHER processes used meanwhile (busy when it exceeds ``BUSY_SHARE``)."""
+
+    load_before: float
+    load_after: float
+    mhz_before: float
+    mhz_after: float
+    others_share: float
+    seconds: float
+    busy: bool
+
+    def line(self) -> str:
+        share = f"{100 * self.others_share:.0f} %" if self.others_share == self.others_share else "unknown"
+        return (f"load average (1 min) {self.load_before:.2f} -> {self.load_after:.2f}, CPU {self.mhz_before:.0f} -> "
+                f"{self.mhz_after:.0f} MHz, other processes used {share} of the cores over {self.seconds:.0f} s"
+                f" -> {'BUSY' if self.busy else 'quiet'}")
+
+
+class CpuWindow:
+    """Watch the machine over a measurement: ``w = CpuWindow(); ...; state = w.stop()``."""
+
+    def __init__(self, busy_share: float = BUSY_SHARE) -> None:
+        self.busy_share = busy_share
+        self._load = _load1()
+        self._mhz = cpu_mhz()
+        self._jiffies = _cpu_jiffies()
+        self._own = _own_cpu_s()
+        self._t = time.monotonic()
+
+    def stop(self) -> MachineState:
+        seconds = time.monotonic() - self._t
+        j1, own = _cpu_jiffies(), _own_cpu_s() - self._own
+        share = float("nan")
+        if self._jiffies is not None and j1 is not None and j1[1] > self._jiffies[1]:
+            hz = os.sysconf("SC_CLK_TCK") if hasattr(os, "sysconf") else 100
+            busy = (j1[0] - self._jiffies[0]) / hz
+            total = (j1[1] - self._jiffies[1]) / hz
+            share = max(0.0, (busy - own) / total)
+        return MachineState(self._load, _load1(), self._mhz, cpu_mhz(), share, seconds,
+                            bool(share > self.busy_share))
+
+
+def _load1() -> float:
+    try:
+        return os.getloadavg()[0]
+    except OSError:
+        return float("nan")

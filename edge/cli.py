@@ -132,7 +132,7 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"tactile-force {name}: interrupted", file=sys.stderr)
         return 130
-    except Exception as exc:  # noqa: BLE001 - the error contract: one line, no traceback
+    except Exception as exc:  # the error contract: one line, no traceback (--debug shows it)
         if debug:
             raise
         code, message = _exit_code(exc)

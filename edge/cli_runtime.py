@@ -131,8 +131,9 @@ def configure_run(p: argparse.ArgumentParser) -> None:
 
 def _summary_lines(stats, runtime) -> list[str]:
     lat = stats.latency_ms
-    lines = [f"readings {stats.readings}: processed {stats.processed}, CNN {stats.inferred}, no_contact {stats.no_contact}, "
-             f"stale {stats.stale}, late {stats.late}, invalid {stats.invalid}, source errors {stats.source_errors}"]
+    lines = [(f"readings {stats.readings}: processed {stats.processed}, CNN {stats.inferred}, "
+              f"no_contact {stats.no_contact}, stale {stats.stale}, late {stats.late}, invalid {stats.invalid}, "
+              f"source errors {stats.source_errors}")]
     lines.append("latency ms (p50 / p99): " + ", ".join(
         f"{k} {v['p50']:.2f}/{v['p99']:.2f}" for k, v in lat.items() if not math.isnan(v["p50"])))
     for s in runtime.sensors:
@@ -162,7 +163,7 @@ def truth_lines(readings: list[ForceReading]) -> list[str]:
     missed = sum(1 for r in with_truth if r.truth_n is not None and r.truth_n >= 1.0 and id(r) not in in_cnn)
     lines = []
     if cnn:
-        rep = error_report([r.force_n for r in cnn], [r.truth_n for r in cnn])
+        rep = error_report([r.force_n for r in cnn], [float(r.truth_n or 0.0) for r in cnn])
         o = rep.overall
         lines.append(f"error vs truth over {o.n} CNN readings: RE {o.re_mean:.3f} +- {o.re_std:.3f}, "
                      f"MAE {o.mae_mean:.3f} +- {o.mae_std:.3f} N")
@@ -329,18 +330,18 @@ def _plot_cv(t: np.ndarray, est: np.ndarray, truth: np.ndarray, path: Path) -> s
     font, black, grid = cv2.FONT_HERSHEY_SIMPLEX, (0, 0, 0), (225, 225, 225)
 
     def xy(ti: float, fi: float) -> tuple[int, int]:
-        return (int(round(left + ti / tmax * (w - left - right))),
-                int(round(h - bottom - fi / fmax * (h - top - bottom))))
+        return (round(left + ti / tmax * (w - left - right)),
+                round(h - bottom - fi / fmax * (h - top - bottom)))
 
     for f in nice_ticks(0.0, fmax):
-        x0, y = xy(0.0, f)
+        _, y = xy(0.0, f)
         cv2.line(img, (left, y), (w - right, y), grid, 1)
         cv2.line(img, (left - 5, y), (left, y), black, 1)
         label = f"{f:g}"
         (tw, th), _ = cv2.getTextSize(label, font, 0.45, 1)
         cv2.putText(img, label, (left - 8 - tw, y + th // 2), font, 0.45, black, 1, cv2.LINE_AA)
     for ti in nice_ticks(0.0, tmax):
-        x, y0 = xy(ti, 0.0)
+        x, _ = xy(ti, 0.0)
         cv2.line(img, (x, top), (x, h - bottom), grid, 1)
         cv2.line(img, (x, h - bottom), (x, h - bottom + 5), black, 1)
         label = f"{ti:g}"
@@ -392,12 +393,12 @@ def run_demo(source, bundle: str | os.PathLike, out_dir: str | os.PathLike, thre
     cnn = cnn_readings(readings)
     err = None
     if cnn:
-        es = error_stats([r.force_n for r in cnn], [r.truth_n for r in cnn])
+        es = error_stats([r.force_n for r in cnn], [float(r.truth_n or 0.0) for r in cnn])
         err = es.as_dict()
     with_truth = [r for r in readings if r.truth_n is not None and Flags.INVALID_INPUT not in r.flags]
     agree = None
     if with_truth:
-        agree = float(np.mean([(Flags.NO_CONTACT not in r.flags) == (r.truth_n >= 1.0) for r in with_truth]))
+        agree = float(np.mean([(Flags.NO_CONTACT not in r.flags) == ((r.truth_n or 0.0) >= 1.0) for r in with_truth]))
     flag_counts: dict[str, int] = {}
     for r in readings:
         for name in r.flags.names() or ["ok"]:

@@ -1,20 +1,37 @@
-"""Contact gate: does anything touch the gel? Background model, difference mask, hysteresis.
+"""Contact gate: does anything touch the gel, and can this frame be judged at all?
 
 The gate keeps a background image of the gel without contact (mean of the first N frames, or
 an explicit :meth:`ContactGate.capture_background`), compares every frame with it per pixel
-(blur, drift-compensated colour difference, threshold, morphology, hole filling) and
-decides contact from the masked area with hysteresis: contact turns on when the area
+and decides contact from the masked area with hysteresis: contact turns on when the area
 reaches ``on_area_frac`` of the frame and off only when it falls below ``off_area_frac``.
 While there is no contact the background follows slow LED drift (``refresh_rate``).
 
-The work runs on a frame downscaled by ``downscale`` (default 2: same masks, ~3x faster,
-see docs/runtime.md); the mask is returned at full resolution, because the depth stage
-filters its full-size depth image with it. Any frame size works (DIGIT 320x240, GelSight
-Mini 480x640); the first background fixes the size.
+Resolution: the work runs on the frame shrunk by ``downscale`` (default 4: a 320x240 DIGIT
+frame becomes 80x60, the input size of the compact default model). The full-resolution mask
+(the depth stage filters its full-size depth image with it) is made only when
+:attr:`GateResult.mask` is read.
+
+Trust (``GateOptions.trust``, on by default; see docs/runtime.md, "Flags"): before the
+difference, a per-channel gain and offset between frame and background is fitted robustly on
+a 20x15 thumbnail (the cells that do not look like contact), so an LED or exposure change
+does not look like contact. Then the frame is judged:
+
+- ``invalid``: the frame fits the background far better with B and R swapped (RGB order), it
+  is uniform (no gel image), or it carries a burst of pixel noise;
+- ``mismatch``: the frame no longer fits the background in a way no contact explains: a
+  sudden brightness step (gain/offset beyond ``step_level``), a shift or rotation of the
+  image (gel or camera moved), or most of the frame changed at once (another unit, another
+  session, occlusion, colour cast). Recovery: the mismatch clears as soon as a frame fits the
+  background again; the background is re-learnt from the live frame once it has been stable
+  for ``relearn_frames`` frames with no contact-like blob (after a brightness step: no blob
+  left after compensation; otherwise the change must cover the frame's borders or be a pure
+  shift/rotation). A press that grew while the gate watched is tracked as contact and never
+  re-learnt into the background.
 """
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 from typing import Iterable
 
@@ -24,6 +41,11 @@ import numpy as np
 from .errors import FrameError
 from .frames import TimedFrame, check_frame
 
+_log = logging.getLogger(__name__)
+
+#: Thumbnail cell size in full-resolution pixels (a 320x240 frame -> 20x15 cells).
+THUMB_CELL_PX = 16
+
 
 @dataclass
 class GateOptions:
@@ -31,38 +53,61 @@ class GateOptions:
 
     background_frames: frames averaged into the background when it is learnt at start.
     blur: odd Gaussian kernel size in pixels at the working (downscaled) resolution.
-    threshold: colour difference (0..255, max over B, G, R after removing the global
-        per-channel drift) above which a pixel counts as changed.
+    threshold: colour difference (0..255, max over B, G, R after the fitted per-channel gain
+        and offset) above which a pixel counts as changed.
     on_area_frac / off_area_frac: hysteresis thresholds on the masked area.
     min_blob_frac: connected regions smaller than this are dropped (noise specks).
-    downscale: integer factor the frame is shrunk by before the work (1 = full res).
+    downscale: integer factor the frame is shrunk by before the work (1 = full res; 4 = the
+        80x60 a compact model sees).
     refresh_rate: per-frame weight of a no-contact frame in the background (0 = frozen).
     saturation_threshold / saturation_area_frac: a changed area (difference above
         saturation_threshold) covering this fraction of the frame reads as gel saturation.
     convex_hull: replace each kept blob by its convex hull (the contact patch of a convex
-        indenter is convex). Off by default: a DIGIT grasps any shape, and on the AUROVA
-        frames the hull adds 30-90 % area. See :meth:`gelsight_mini`.
+        indenter is convex). Off by default: a DIGIT grasps any shape. See :meth:`gelsight_mini`.
+    trust: fit gain/offset and judge mismatch / invalid frames (off: the plain gate).
+    fit_tolerance: a thumbnail cell fits the background when its residual after the fit is
+        below this (grey levels).
+    step_level: mean brightness change (grey levels) implied by the fitted gain/offset above
+        which the frame is a sudden photometric step (background_mismatch).
+    fit_floor: below this fraction of fitting cells, a change that appeared at once (no
+        contact was being tracked) is a background mismatch.
+    motion_explained: share of the residual explained by a shift/rotation of the background
+        above which the gel or camera moved.
+    noise_factor: pixel-noise level (mean |frame - blurred frame|) above noise_factor x the
+        background's + 1 grey level is a noise burst (invalid).
+    relearn_frames: stable frames (no contact-like blob) before a mismatched background is
+        re-learnt from the live frame; 0 = never (call :meth:`ContactGate.relearn`).
+    stable_level: mean thumbnail change (grey levels) between frames under which a frame is stable.
     """
 
     background_frames: int = 5
-    blur: int = 5
-    threshold: float = 14.0
+    blur: int = 3
+    threshold: float = 10.0
     on_area_frac: float = 0.006
     off_area_frac: float = 0.003
     min_blob_frac: float = 0.0015
-    downscale: int = 2
+    downscale: int = 4
     refresh_rate: float = 0.02
     saturation_threshold: float = 60.0
     saturation_area_frac: float = 0.25
     convex_hull: bool = False
+    trust: bool = True
+    fit_tolerance: float = 8.0
+    step_level: float = 10.0
+    fit_floor: float = 0.35
+    motion_explained: float = 0.35
+    noise_factor: float = 2.2
+    relearn_frames: int = 30
+    stable_level: float = 2.0
 
     @classmethod
     def gelsight_mini(cls, **overrides: object) -> "GateOptions":
         """Settings for a GelSight Mini (480x640): its LEDs make a stronger colour halo
-        around the contact than a DIGIT's, so a higher threshold, and convex hulls (ball and
-        other convex indenters). On the 16 labelled ball presses (shared data): IoU with the
-        contact circles mean 0.65, min 0.58 (threshold 25 without hulls: 0.61, 0.54)."""
-        return cls(**{"threshold": 28.0, "convex_hull": True, **overrides})
+        around the contact than a DIGIT's, so a higher threshold, convex hulls (ball and
+        other convex indenters) and a finer working resolution (x2). On the 16 labelled ball
+        presses (shared data): IoU with the contact circles mean 0.65 (see docs/runtime.md)."""
+        base: dict[str, object] = {"threshold": 28.0, "convex_hull": True, "downscale": 2, "blur": 5}
+        return cls(**{**base, **overrides})  # type: ignore[arg-type]
 
     def validate(self) -> None:
         """Raise ValueError naming the first bad field."""
@@ -81,16 +126,30 @@ class GateOptions:
             raise ValueError(f"gate.downscale={self.downscale}: expected an integer >= 1")
         if not 0 <= self.refresh_rate < 1:
             raise ValueError(f"gate.refresh_rate={self.refresh_rate}: expected 0 <= rate < 1")
-        if not isinstance(self.convex_hull, bool):
-            raise ValueError(f"gate.convex_hull={self.convex_hull!r}: expected true or false")
+        for name in ("convex_hull", "trust"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f"gate.{name}={getattr(self, name)!r}: expected true or false")
+        for name in ("fit_tolerance", "step_level", "noise_factor", "stable_level"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"gate.{name}={getattr(self, name)}: expected a number > 0")
+        for name in ("fit_floor", "motion_explained"):
+            if not 0 < getattr(self, name) < 1:
+                raise ValueError(f"gate.{name}={getattr(self, name)}: expected 0 < value < 1")
+        if int(self.relearn_frames) != self.relearn_frames or self.relearn_frames < 0:
+            raise ValueError(f"gate.relearn_frames={self.relearn_frames}: expected an integer >= 0 (0 = never)")
 
 
 class GateResult:
     """One gate decision.
 
-    contact: gate open (after hysteresis). area_px: masked area in full-resolution pixels.
-    saturation_seen: a large strongly changed area. background_ready: False while the
-    background is still being learnt (then contact is False).
+    contact: gate open (after hysteresis). area_px: masked area in full-resolution pixels;
+    area_frac: the same as a fraction of the frame. saturation_seen: a large strongly changed
+    area. background_ready: False while the background is still being learnt (then contact
+    is False). mismatch: why the frame does not fit the background ("" = it fits; then
+    contact is False). invalid: why the frame cannot be judged at all (colour order, uniform,
+    noise; "" = fine). deformation: mean compensated colour difference inside the mask (grey
+    levels; 0 without contact). thumb: the frame's 20x15x3 uint8 thumbnail (a buffer the
+    gate reuses). gain / offset: the fitted per-channel (B, G, R) photometric change.
 
     mask (HxW uint8 0/255 at the frame's full resolution), centroid ((x, y) pixels or None)
     and bbox ((x, y, w, h) pixels or None) are computed on first access from the gate's
@@ -99,18 +158,31 @@ class GateResult:
     the next ``update``.
     """
 
-    __slots__ = ("contact", "area_px", "saturation_seen", "background_ready", "_small", "_k", "_exact",
-                 "_full", "_mask_ready", "_geometry")
+    __slots__ = ("contact", "area_px", "area_frac", "saturation_seen", "background_ready", "mismatch", "invalid",
+                 "deformation", "thumb", "gain", "offset", "_small", "_k", "_exact", "_full", "_mask_ready",
+                 "_geometry")
 
     def __init__(self, contact: bool, area_px: int, saturation_seen: bool, small: np.ndarray, full: np.ndarray,
                  k: int, exact: bool, background_ready: bool = True) -> None:
         self.contact = contact
         self.area_px = area_px
+        self.area_frac = area_px / float(full.shape[0] * full.shape[1])
         self.saturation_seen = saturation_seen
         self.background_ready = background_ready
+        self.mismatch = ""
+        self.invalid = ""
+        self.deformation = 0.0
+        self.thumb: np.ndarray | None = None
+        self.gain: tuple[float, float, float] = (1.0, 1.0, 1.0)
+        self.offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
         self._small, self._full, self._k, self._exact = small, full, k, exact
         self._mask_ready = small is full
         self._geometry: tuple | None = None
+
+    @property
+    def mask_computed(self) -> bool:
+        """True once the full-resolution mask exists (it is made on first read of ``mask``)."""
+        return self._mask_ready
 
     @property
     def mask(self) -> np.ndarray:
@@ -145,7 +217,35 @@ class GateResult:
 
     def __repr__(self) -> str:
         return (f"GateResult(contact={self.contact}, area_px={self.area_px}, saturation_seen={self.saturation_seen}, "
-                f"background_ready={self.background_ready})")
+                f"background_ready={self.background_ready}, mismatch={self.mismatch!r}, invalid={self.invalid!r})")
+
+
+class _Reference:
+    """What the trust checks need of a background thumbnail (N cells x 3, float32): the
+    cells, their squares, and (lazily) the shift/rotation basis of its gradients."""
+
+    def __init__(self, thumb: np.ndarray) -> None:
+        self.rows, self.cols = thumb.shape[:2]
+        self.x = thumb.reshape(-1, 3)  # a view: follows the refreshed background thumbnail
+        self._motion: tuple[np.ndarray, np.ndarray] | None = None
+
+    def refreshed(self) -> None:
+        """The background thumbnail changed: the motion basis is made again when next needed."""
+        self._motion = None
+
+    def motion(self) -> tuple[np.ndarray, np.ndarray]:
+        """(pinv (3, 3N), G^T G (3, 3)) of the basis d(thumb)/d(shift x, shift y, rotation)."""
+        if self._motion is None:
+            t = self.x.reshape(self.rows, self.cols, 3)
+            gx = cv2.Sobel(t, cv2.CV_32F, 1, 0, ksize=3) / 8.0
+            gy = cv2.Sobel(t, cv2.CV_32F, 0, 1, ksize=3) / 8.0
+            yy, xx = np.mgrid[: self.rows, : self.cols].astype(np.float32)
+            yy -= self.rows / 2.0
+            xx -= self.cols / 2.0
+            rot = (-yy[..., None] * gx + xx[..., None] * gy) / max(self.rows, self.cols)
+            g = np.stack([gx.ravel(), gy.ravel(), rot.ravel()], axis=1).astype(np.float64)
+            self._motion = (np.linalg.pinv(g).astype(np.float32), (g.T @ g).astype(np.float32))
+        return self._motion
 
 
 class ContactGate:
@@ -155,10 +255,24 @@ class ContactGate:
         self.options = options or GateOptions()
         self.options.validate()
         self._bg: np.ndarray | None = None  # blurred background, float32, working res
+        self._bg_thumb: np.ndarray | None = None  # its thumbnail, float32
+        self._ref: _Reference | None = None
         self._learn: list[np.ndarray] = []
+        self._learn_thumbs: list[np.ndarray] = []
+        self._learn_noise: list[float] = []
+        self._relearned_now = False
         self._shape: tuple[int, int, int] | None = None
         self._contact = False
-        self._alloc_done = False
+        self._gain = np.ones(3, np.float32)
+        self._offset = np.zeros(3, np.float32)
+        self._bg_noise = 1.0
+        self._mismatch = ""
+        self._mismatch_kind = ""
+        self._stable = 0
+        self._prev_thumb: np.ndarray | None = None
+        self._given = 0  # live frames still to check against a background given at start
+        self._given_origin = ""
+        self.relearned = 0  # how many times the background was re-learnt after a mismatch
 
     # -- background ---------------------------------------------------------------------
     @property
@@ -170,81 +284,315 @@ class ContactGate:
         """H x W x 3 the gate works at, fixed by the first background."""
         return self._shape
 
-    def capture_background(self, frames: Iterable[np.ndarray | TimedFrame]) -> None:
-        """Set the background to the mean of ``frames`` (HxWx3 uint8 BGR, no contact)."""
-        work = [self._prepare(self._as_array(f, i)).copy() for i, f in enumerate(frames)]
+    @property
+    def state(self) -> str:
+        """'learning', 'ok' or 'mismatch: <reason>'."""
+        if self._bg is None:
+            return "learning"
+        return f"mismatch: {self._mismatch}" if self._mismatch else "ok"
+
+    def capture_background(self, frames: Iterable[np.ndarray | TimedFrame], origin: str = "") -> None:
+        """Set the background to the mean of ``frames`` (HxWx3 uint8 BGR, no contact).
+
+        origin: where the frames came from (e.g. the scene's background file); when given,
+        the first live frames are checked against it and a mismatch names it."""
+        work, thumbs, noise = [], [], []
+        for i, f in enumerate(frames):
+            w, t = self._prepare(self._as_array(f, i))
+            work.append(w.astype(np.float32))
+            thumbs.append(t.astype(np.float32))
+            noise.append(self._noise(w))
         if not work:
             raise FrameError("capture_background: no frames given; expected at least one no-contact frame")
-        self._bg = np.mean(work, axis=0, dtype=np.float32)
-        self._learn.clear()
-        self._contact = False
+        self._set_background(np.mean(work, axis=0, dtype=np.float32), np.mean(thumbs, axis=0, dtype=np.float32),
+                             float(np.mean(noise)))
+        self._given, self._given_origin = (5, origin) if origin else (0, "")
 
     def reset(self) -> None:
         """Forget the background; the next ``background_frames`` frames are learnt again."""
         self._bg = None
+        self._bg_thumb = None
+        self._ref = None
         self._learn.clear()
+        self._learn_thumbs.clear()
+        self._learn_noise.clear()
         self._contact = False
+        self._clear_mismatch()
+
+    def relearn(self, frame: np.ndarray | TimedFrame) -> None:
+        """Take ``frame`` (no contact: the gripper is open) as the new background now."""
+        self.capture_background([frame])
 
     # -- per frame ----------------------------------------------------------------------
     def update(self, frame: np.ndarray | TimedFrame) -> GateResult:
         """Gate one frame (HxWx3 uint8 BGR, same size as the background)."""
         arr = self._as_array(frame, None)
-        work = self._prepare(arr)
+        work, thumb = self._prepare(arr)
         o = self.options
         if self._bg is None:
-            self._learn.append(work.copy())
+            self._learn.append(work.astype(np.float32))
+            self._learn_thumbs.append(thumb.astype(np.float32))
+            self._learn_noise.append(self._noise(work))
             if len(self._learn) >= o.background_frames:
-                self._bg = np.mean(self._learn, axis=0, dtype=np.float32)
+                self._set_background(np.mean(self._learn, axis=0, dtype=np.float32),
+                                     np.mean(self._learn_thumbs, axis=0, dtype=np.float32),
+                                     float(np.mean(self._learn_noise)))
+                self._learn_noise.clear()
                 self._learn.clear()
-            self._full_mask[:] = 0
-            return GateResult(False, 0, False, self._full_mask, self._full_mask, 1, True, background_ready=False)
+                self._learn_thumbs.clear()
+            self._mask[:] = 0
+            r = GateResult(False, 0, False, self._mask, self._full_mask, int(o.downscale), self._exact,
+                           background_ready=False)
+            r._mask_ready = False
+            r.thumb = thumb
+            return r
 
-        # Signed difference minus the global per-channel shift (LED drift, exposure), thresholded
-        # on the max over B, G, R: |d - shift| > t on some channel <=> d outside [shift - t,
-        # shift + t] on some channel, so one inRange + invert does subtract, abs, max and compare.
-        cv2.subtract(work, self._bg, dst=self._diff, dtype=cv2.CV_32F)
-        shift = cv2.mean(self._diff)
-        self._lo[:] = shift[:3]
-        self._hi[:] = shift[:3]
-        self._lo -= o.threshold
-        self._hi += o.threshold
-        cv2.inRange(self._diff, self._lo, self._hi, dst=self._mask)
+        y = None
+        if o.trust:
+            y = self._thumb_f
+            np.copyto(y, thumb.reshape(-1, 3), casting="unsafe")
+            self._fit(y)
+        # Model of the frame = background x gain + offset per channel (uint8), then the max
+        # over B, G, R of |frame - model| > threshold <=> not all channels within [0, t].
+        self._M[self._diag] = self._gain
+        self._M[:, 3] = self._offset
+        cv2.transform(self._bg, self._M, dst=self._model_f)
+        cv2.convertScaleAbs(self._model_f, dst=self._model)
+        cv2.absdiff(work, self._model, dst=self._ad)
+        cv2.inRange(self._ad, self._zero, self._thr, dst=self._mask)
         cv2.bitwise_not(self._mask, dst=self._mask)
-        self._lo += o.threshold - o.saturation_threshold
-        self._hi -= o.threshold - o.saturation_threshold
-        cv2.inRange(self._diff, self._lo, self._hi, dst=self._strong)
-        strong = self._work_area - cv2.countNonZero(self._strong)
-        saturation_seen = strong >= o.saturation_area_frac * self._work_area
-        cv2.morphologyEx(self._mask, cv2.MORPH_OPEN, self._kernel, dst=self._mask)
-        cv2.morphologyEx(self._mask, cv2.MORPH_CLOSE, self._kernel_close, dst=self._mask)
 
-        # Keep blobs big enough to be contact, filled (a ball's flat top looks like background).
-        contours, _ = cv2.findContours(self._mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
-        self._mask[:] = 0
-        keep = [c for c in contours if cv2.contourArea(c) >= self._min_blob]
-        if o.convex_hull:
-            keep = [cv2.convexHull(c) for c in keep]
-        if keep:
-            cv2.drawContours(self._mask, keep, -1, 255, thickness=cv2.FILLED)
+        area_small = 0
+        saturation_seen = False
+        deformation = 0.0
+        if cv2.countNonZero(self._mask):
+            cv2.morphologyEx(self._mask, cv2.MORPH_OPEN, self._kernel, dst=self._mask)
+            # Keep blobs big enough to be contact, filled (a ball's flat top looks like background).
+            contours, _ = cv2.findContours(self._mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+            self._mask[:] = 0
+            keep = [c for c in contours if cv2.contourArea(c) >= self._min_blob]
+            if keep:
+                if o.convex_hull:
+                    keep = [cv2.convexHull(c) for c in keep]
+                cv2.drawContours(self._mask, keep, -1, 255, thickness=cv2.FILLED)
+                area_small = cv2.countNonZero(self._mask)
+                cv2.inRange(self._ad, self._zero, self._sat, dst=self._strong)
+                strong = self._work_area - cv2.countNonZero(self._strong)
+                saturation_seen = strong >= o.saturation_area_frac * self._work_area
+                deformation = max(cv2.mean(self._ad, mask=self._mask)[:3])
 
         s = int(o.downscale)
-        small = self._mask if (s > 1 and self._exact) else self._full_mask
-        if small is self._full_mask and s > 1:
+        k = s if self._exact else 1
+        if s > 1 and self._exact:
+            area = area_small * s * s
+        elif s > 1:  # the factor does not divide the frame: count on the full-resolution mask
             cv2.resize(self._mask, (arr.shape[1], arr.shape[0]), dst=self._full_mask, interpolation=cv2.INTER_NEAREST)
-        k = s if small is self._mask else 1
-        area = cv2.countNonZero(small) * k * k
-
+            area = cv2.countNonZero(self._full_mask)
+        else:
+            area = area_small
         frac = area / self._full_area
+
+        was_contact = self._contact
         if self._contact:
             self._contact = frac >= o.off_area_frac
         else:
             self._contact = frac >= o.on_area_frac
 
-        if not self._contact and o.refresh_rate > 0:
+        invalid = mismatch = ""
+        self._relearned_now = False
+        if o.trust and y is not None:
+            invalid, mismatch = self._judge(y, work, thumb, frac, was_contact)
+        if self._relearned_now:  # this frame is the new background: no contact in it
+            self._contact = False
+            area, saturation_seen, deformation = 0, False, 0.0
+            self._mask[:] = 0
+        elif invalid or mismatch:
+            self._contact = was_contact and not mismatch and not invalid
+        elif not self._contact and o.refresh_rate > 0:
             cv2.accumulateWeighted(work, self._bg, o.refresh_rate)
+            assert self._bg_thumb is not None
+            cv2.accumulateWeighted(thumb, self._bg_thumb, o.refresh_rate)
+            assert self._ref is not None
+            self._ref.refreshed()
+
+        small = self._mask if (s > 1 and self._exact) else self._full_mask
         full = self._mask if s == 1 else self._full_mask
-        return GateResult(self._contact, int(area), bool(saturation_seen), small if s > 1 else full, full, k,
-                          self._exact)
+        contact = self._contact and not mismatch and not invalid
+        r = GateResult(contact, int(area), bool(saturation_seen), small if s > 1 else full, full, k, self._exact)
+        if s > 1 and not self._exact:
+            r._mask_ready = True
+        r.mismatch, r.invalid, r.deformation, r.thumb = mismatch, invalid, float(deformation), thumb
+        r.gain = (float(self._gain[0]), float(self._gain[1]), float(self._gain[2]))
+        r.offset = (float(self._offset[0]), float(self._offset[1]), float(self._offset[2]))
+        return r
+
+    # -- trust ----------------------------------------------------------------------------
+    def _fit(self, y: np.ndarray) -> None:
+        """Per-channel gain/offset (frame = gain x background + offset) fitted on the thumbnail
+        cells that fit the previous model (all cells when fewer than half do); sets
+        ``self._resid`` (max-channel |residual| per cell) and ``self._fit_frac``."""
+        ref = self._ref
+        assert ref is not None
+        o = self.options
+        x = ref.x
+        e = self._resid
+        np.abs(y - (x * self._gain + self._offset), out=self._res3)
+        np.max(self._res3, axis=1, out=e)
+        w = (e < o.fit_tolerance).astype(np.float32)
+        n = float(w.sum())
+        if n < 0.5 * len(w):
+            w[:] = 1.0
+            n = float(len(w))
+        sx, sy, sxx, sxy = w @ x, w @ y, w @ (x * x), w @ (x * y)
+        den = n * sxx - sx * sx
+        gain = np.where(den > 1e-3, (n * sxy - sx * sy) / np.maximum(den, 1e-3), 0.0)
+        self._gain[:] = gain
+        self._offset[:] = (sy - gain * sx) / n
+        np.abs(y - (x * self._gain + self._offset), out=self._res3)
+        np.max(self._res3, axis=1, out=e)
+        self._fit_frac = float(np.count_nonzero(e < o.fit_tolerance)) / len(e)
+
+    def _judge(self, y: np.ndarray, work: np.ndarray, thumb: np.ndarray, frac: float,
+               was_contact: bool) -> tuple[str, str]:
+        """(invalid reason, mismatch reason) for this frame; updates the mismatch state and
+        re-learns the background when the recovery policy allows."""
+        o = self.options
+        ref = self._ref
+        assert ref is not None
+        invalid = ""
+        step = float(np.max(np.abs((self._gain - 1.0) * (self._ones @ ref.x) / len(ref.x) + self._offset)))
+        global_change = self._fit_frac < o.fit_floor
+        suspicious = global_change or step > o.step_level or frac > 0 or self._mismatch
+        if not suspicious:
+            self._clear_mismatch()
+            return "", ""
+        # Pixel noise: mean |frame - blurred| against the background's level.
+        noise = self._noise(work)
+        if noise > o.noise_factor * self._bg_noise * max(1.0, float(self._gain.max())) + 1.0:
+            invalid = (f"noise burst: pixel noise {noise:.1f} grey levels against {self._bg_noise:.1f} in the "
+                       "background (interference, a failing cable or camera?)")
+        reason, kind = "", ""
+        if not invalid and (global_change or step > o.step_level):
+            if float(y.std(axis=0).max()) < 2.0:
+                invalid = "uniform frame: no gel image (LEDs off, lens covered, a test pattern or a stalled camera?)"
+            elif global_change and self._colour_swapped(y):
+                invalid = ("colour order: the frame fits the background far better with B and R swapped; the source "
+                           "delivers RGB, the package expects BGR (OpenCV order): convert with frame[..., ::-1]")
+        if not invalid:
+            explained = self._motion_explained(y, ref) if (frac > 0 or global_change or self._fit_frac < 0.98) else 0.0
+            if explained > o.motion_explained:
+                reason, kind = (f"the gel or camera moved: {100 * explained:.0f} % of the difference is a shift or "
+                                "rotation of the background", "global")
+            elif global_change and not was_contact:
+                reason, kind = (f"the frame no longer fits the background: only {100 * self._fit_frac:.0f} % of it "
+                                "fits (another sensor unit or session, occlusion, colour cast?)", "global")
+            elif step > o.step_level and self._fit_frac >= 0.5:
+                g = "/".join(f"{v:.2f}" for v in self._gain)
+                reason, kind = (f"sudden brightness step of {step:.0f} grey levels (LED/exposure: gain B/G/R {g})",
+                                "photometric")
+            elif self._mismatch and self._fit_frac >= 0.8 and step <= o.step_level:
+                self._clear_mismatch()
+        if self._given and reason:
+            reason = (f"the background given at start ({self._given_origin}) does not fit the live frames: {reason}; "
+                      "remove it from the scene to learn the background from the first frames, or record a new one")
+        if self._given:
+            self._given -= 1
+        if reason:
+            self._enter_mismatch(reason, kind)
+            self._may_relearn(thumb, frac, kind)
+            return invalid, self._mismatch
+        if self._mismatch and not invalid:
+            # In a mismatch state frames that do not show the reason any more but do not fit
+            # well either (fit_frac < 0.8) stay mismatched.
+            self._may_relearn(thumb, frac, self._mismatch_kind)
+            return invalid, self._mismatch
+        return invalid, ""
+
+    def _colour_swapped(self, y: np.ndarray) -> bool:
+        """True when B and R swapped fit the background far better than the frame as it is."""
+        ref = self._ref
+        assert ref is not None
+        ys = np.ascontiguousarray(y[:, ::-1])
+        n = float(len(ys))
+        x = ref.x
+        sx, sy, sxx, sxy = x.sum(0), ys.sum(0), (x * x).sum(0), (x * ys).sum(0)
+        den = n * sxx - sx * sx
+        gain = (n * sxy - sx * sy) / np.maximum(den, 1e-3)
+        off = (sy - gain * sx) / n
+        frac = float(np.mean(np.abs(ys - (x * gain + off)).max(axis=1) < self.options.fit_tolerance))
+        return frac >= 0.7 and frac >= self._fit_frac + 0.3
+
+    def _motion_explained(self, y: np.ndarray, ref: _Reference) -> float:
+        """Share of the residual energy a shift/rotation of the background explains (0..1)."""
+        r = (y - (ref.x * self._gain + self._offset)).ravel()
+        energy = float(r @ r)
+        if energy < len(r) * 4.0:  # rms residual under 2 grey levels: nothing to explain
+            return 0.0
+        pinv, gtg = ref.motion()
+        d = pinv @ r
+        return float(d @ gtg @ d) / energy
+
+    def _enter_mismatch(self, reason: str, kind: str) -> None:
+        if not self._mismatch:
+            _log.warning("contact gate: background mismatch: %s; readings are background_mismatch (force NaN) "
+                         "until a frame fits again or the background is re-learnt after %d stable frames",
+                         reason, self.options.relearn_frames)
+            self._stable = 0
+            self._prev_thumb = None
+        self._mismatch, self._mismatch_kind = reason, kind
+
+    def _clear_mismatch(self) -> None:
+        if self._mismatch:
+            _log.info("contact gate: the frame fits the background again; mismatch cleared")
+        self._mismatch = self._mismatch_kind = ""
+        self._stable = 0
+        self._prev_thumb = None
+
+    def _may_relearn(self, thumb: np.ndarray, frac: float, kind: str) -> bool:
+        """Count stable frames with no contact-like blob; re-learn after ``relearn_frames``."""
+        o = self.options
+        t = thumb.astype(np.float32)
+        stable = self._prev_thumb is not None and float(np.mean(np.abs(t - self._prev_thumb))) < o.stable_level
+        self._prev_thumb = t
+        # No contact-like blob: after a brightness step nothing is left once compensated; for
+        # a global change (another unit, moved gel) the change reaches every border (a press
+        # does not) or is a pure shift/rotation.
+        if kind == "photometric":
+            blob_free = frac < o.off_area_frac
+        else:
+            blob_free = self._borders_changed() >= 3 or "moved" in self._mismatch
+        self._stable = self._stable + 1 if (stable and blob_free) else 0
+        if o.relearn_frames and self._stable >= o.relearn_frames:
+            reason = self._mismatch
+            self.capture_background([self._last_frame])
+            self.relearned += 1
+            self._relearned_now = True
+            _log.warning("contact gate: background re-learnt from the live frame after %d stable frames (%s)",
+                         o.relearn_frames, reason)
+            return True
+        return False
+
+    def _borders_changed(self) -> int:
+        """How many of the four border strips (2 thumbnail cells wide) mostly do not fit."""
+        ref = self._ref
+        assert ref is not None
+        bad = (self._resid >= self.options.fit_tolerance).reshape(ref.rows, ref.cols)
+        strips = (bad[:2], bad[-2:], bad[:, :2], bad[:, -2:])
+        return sum(1 for s in strips if s.mean() > 0.5)
+
+    def _noise(self, work: np.ndarray) -> float:
+        """Pixel-noise level of the frame just prepared: mean |shrunk frame - blurred| (grey levels)."""
+        return float(max(cv2.mean(cv2.absdiff(self._small, work))[:3]))
+
+    def _set_background(self, bg: np.ndarray, thumb: np.ndarray, noise: float) -> None:
+        self._bg = bg
+        self._bg_thumb = thumb
+        self._ref = _Reference(thumb)
+        self._gain[:] = 1.0
+        self._offset[:] = 0.0
+        self._contact = False
+        self._clear_mismatch()
+        self._bg_noise = max(0.5, noise)
 
     # -- internals ----------------------------------------------------------------------
     def _as_array(self, frame: np.ndarray | TimedFrame, i: int | None) -> np.ndarray:
@@ -256,6 +604,7 @@ class ContactGate:
         elif arr.shape != self._shape:
             raise FrameError(f"{name}: shape {arr.shape}; this gate's background is {self._shape} "
                              "(call reset() or use one gate per sensor)")
+        self._last_frame = arr
         return arr
 
     def _allocate(self, shape: tuple[int, int, int]) -> None:
@@ -263,12 +612,22 @@ class ContactGate:
         h, w = shape[:2]
         s = int(o.downscale)
         wh, ww = max(1, h // s), max(1, w // s)
-        self._shape = tuple(shape)
+        th, tw = max(2, h // THUMB_CELL_PX), max(2, w // THUMB_CELL_PX)
+        self._shape = (int(shape[0]), int(shape[1]), int(shape[2]))
         self._small = np.empty((wh, ww, 3), np.uint8)
         self._work = np.empty((wh, ww, 3), np.uint8)
-        self._diff = np.empty((wh, ww, 3), np.float32)
-        self._lo = np.empty(3, np.float64)
-        self._hi = np.empty(3, np.float64)
+        self._thumb = np.empty((th, tw, 3), np.uint8)
+        self._thumb_f = np.empty((th * tw, 3), np.float32)
+        self._res3 = np.empty((th * tw, 3), np.float32)
+        self._resid = np.zeros(th * tw, np.float32)
+        self._fit_frac = 1.0
+        self._model_f = np.empty((wh, ww, 3), np.float32)
+        self._model = np.empty((wh, ww, 3), np.uint8)
+        self._ad = np.empty((wh, ww, 3), np.uint8)
+        self._M = np.zeros((3, 4), np.float32)
+        self._zero = np.zeros(3, np.float64)
+        self._thr = np.full(3, float(o.threshold), np.float64)
+        self._sat = np.full(3, float(o.saturation_threshold), np.float64)
         self._exact = s == 1 or (h % s == 0 and w % s == 0)
         self._mask = np.empty((wh, ww), np.uint8)
         self._strong = np.empty((wh, ww), np.uint8)
@@ -276,21 +635,25 @@ class ContactGate:
         self._work_area = wh * ww
         self._full_area = h * w
         self._min_blob = o.min_blob_frac * self._work_area
-        k = max(3, (min(wh, ww) // 60) | 1)  # ~3 px at 120x160, scales with size
-        self._kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))
-        self._kernel_close = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * k + 1, 2 * k + 1))
+        self._kernel = cv2.getStructuringElement(cv2.MORPH_RECT, (3, 3))
+        self._ones = np.ones(th * tw, np.float32)
+        self._diag = (np.arange(3), np.arange(3))
 
-    def _prepare(self, arr: np.ndarray) -> np.ndarray:
-        """Downscale (INTER_AREA) + blur into the uint8 working buffer (reused; uint8 keeps
-        OpenCV on its fixed-point fast paths)."""
+    def _prepare(self, arr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Downscale (INTER_LINEAR: the mean of the central 2x2 of each block, as fast as a
+        plain subsample; a x2 shrink is exactly the 2x2 mean) + blur into the uint8 working
+        buffer, and its thumbnail (INTER_AREA); both buffers are reused."""
         s = int(self.options.downscale)
         src = arr
         if s > 1:
-            cv2.resize(arr, (self._small.shape[1], self._small.shape[0]), dst=self._small, interpolation=cv2.INTER_AREA)
+            cv2.resize(arr, (self._small.shape[1], self._small.shape[0]), dst=self._small, interpolation=cv2.INTER_LINEAR)
             src = self._small
+        else:
+            np.copyto(self._small, arr)
         b = self.options.blur
         if b > 1:
             cv2.GaussianBlur(src, (b, b), 0, dst=self._work)
         else:
             np.copyto(self._work, src)
-        return self._work
+        cv2.resize(self._work, (self._thumb.shape[1], self._thumb.shape[0]), dst=self._thumb, interpolation=cv2.INTER_AREA)
+        return self._work, self._thumb

@@ -388,10 +388,16 @@ def _migrate_v1(raw: dict[str, Any]) -> dict[str, Any]:
     out: dict[str, Any] = {k: raw[k] for k in ("variant", "precision", "name", "sha256", "onnx_file", "created_by")
                            if k in raw}
     out["format_version"] = FORMAT_VERSION
-    out["inputs"] = [{k: v for k, v in s.items() if k in ("name", "kind", "shape", "dtype", "layout", "colour_order",
-                                                          "scaling")} for s in raw.get("inputs", [])]
-    if "output" in raw:
-        out["output"] = {k: v for k, v in raw["output"].items() if k in ("name", "shape", "dtype", "unit")}
+    inputs = raw.get("inputs")
+    if isinstance(inputs, list) and all(isinstance(s, dict) for s in inputs):
+        inputs = [{k: v for k, v in s.items() if k in ("name", "kind", "shape", "dtype", "layout", "colour_order",
+                                                        "scaling")} for s in inputs]
+    out["inputs"] = inputs  # anything else: the typed reader names the field
+    output = raw.get("output")
+    if isinstance(output, dict):
+        out["output"] = {k: v for k, v in output.items() if k in ("name", "shape", "dtype", "unit")}
+    elif output is not None:
+        out["output"] = output
     out["preprocessing"] = raw.get("preprocessing_in_graph", [])
     arch = dict(raw.get("architecture") or {})
     depth = arch.pop("depth", None)

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import os
 import sys
-from typing import Iterable, Iterator, TypeVar
+from collections.abc import Iterable, Iterator
+from typing import TypeVar
 
 T = TypeVar("T")
 
@@ -35,7 +36,7 @@ def progress(items: Iterable[T], total: int | None = None, desc: str = "", enabl
     iterator
         The items, unchanged and in order.
     """
-    from tqdm import tqdm
+    from tqdm import tqdm  # type: ignore[import-untyped]
 
     bar = tqdm(items, total=total, desc=desc or None, disable=not progress_enabled(enabled), file=sys.stderr,
                mininterval=0.1, dynamic_ncols=True, leave=True)

@@ -1,3 +1,5 @@
+# cyclonedds.idl.types.sequence[...] is a runtime type constructor mypy cannot read:
+# mypy: disable-error-code="type-arg,assignment,arg-type"
 """ROS 2 message types as Cyclone DDS IDL structs, and readings turned into them.
 
 The structs carry the DDS type names a ROS 2 node uses (``geometry_msgs::msg::dds_::
@@ -10,8 +12,7 @@ message encoding.
 Header stamps are ROS time from :class:`~tactile_force.edge.ros2_names.StampClock`.
 """
 
-from __future__ import annotations
-
+# No 'from __future__ import annotations': cyclonedds reads the field types at class creation.
 import enum
 import math
 from dataclasses import dataclass, field
@@ -127,8 +128,8 @@ MSG_DEFINITIONS: dict[str, str] = {
     DIAGNOSTIC_ARRAY: _schema("std_msgs/Header header\ndiagnostic_msgs/DiagnosticStatus[] status\n", [
         ("std_msgs/Header", _HEADER), ("builtin_interfaces/Time", _TIME),
         ("diagnostic_msgs/DiagnosticStatus",
-         "byte OK=0\nbyte WARN=1\nbyte ERROR=2\nbyte STALE=3\nbyte level\nstring name\nstring message\n"
-         "string hardware_id\ndiagnostic_msgs/KeyValue[] values\n"),
+         ("byte OK=0\nbyte WARN=1\nbyte ERROR=2\nbyte STALE=3\nbyte level\nstring name\nstring message\n"
+          "string hardware_id\ndiagnostic_msgs/KeyValue[] values\n")),
         ("diagnostic_msgs/KeyValue", "string key\nstring value\n")]),
     COMPRESSED_IMAGE: _schema("std_msgs/Header header\nstring format\nuint8[] data\n", [
         ("std_msgs/Header", _HEADER), ("builtin_interfaces/Time", _TIME)]),
@@ -146,6 +147,11 @@ class DiagnosticLevel(enum.IntEnum):
 _WARN_FLAGS = Flags.BELOW_RANGE | Flags.SATURATED | Flags.LATE | Flags.STALE
 
 
+def _stamp(clock: StampClock, monotonic_ns: int) -> Time:
+    sec, nanosec = clock.sec_nanosec(monotonic_ns)
+    return Time(sec=sec, nanosec=nanosec)
+
+
 def diagnostic_level(flags: Flags) -> DiagnosticLevel:
     """ERROR for invalid input, WARN for below-range / saturated / late / stale, else OK
     (no contact is a normal state)."""
@@ -159,7 +165,7 @@ def diagnostic_level(flags: Flags) -> DiagnosticLevel:
 def wrench_message(r: ForceReading, clock: StampClock) -> WrenchStamped:
     """WrenchStamped of a reading: stamp = frame time, frame_id = sensor name,
     force.z = normal force in N (NaN when there is no estimate); the rest 0."""
-    return WrenchStamped(header=Header(stamp=clock.stamp(r.timestamp_ns), frame_id=r.sensor),
+    return WrenchStamped(header=Header(stamp=_stamp(clock, r.timestamp_ns), frame_id=r.sensor),
                          wrench=Wrench(force=Vector3(0.0, 0.0, float(r.force_n))))
 
 
@@ -187,10 +193,10 @@ def diagnostic_message(r: ForceReading, clock: StampClock, node: str = "tactile_
               KeyValue("total_ms", _num(lat.total_ms))]
     status = DiagnosticStatus(level=int(diagnostic_level(r.flags)), name=f"{node}: {r.sensor}", message=message,
                               hardware_id=r.sensor, values=values)
-    return DiagnosticArray(header=Header(stamp=clock.stamp(r.timestamp_ns), frame_id=r.sensor), status=[status])
+    return DiagnosticArray(header=Header(stamp=_stamp(clock, r.timestamp_ns), frame_id=r.sensor), status=[status])
 
 
 def compressed_image(sensor: str, timestamp_ns: int, data: bytes, fmt: str, clock: StampClock) -> CompressedImage:
     """CompressedImage of already-encoded image bytes (``fmt`` 'jpeg' or 'png')."""
-    return CompressedImage(header=Header(stamp=clock.stamp(timestamp_ns), frame_id=sensor), format=fmt,
+    return CompressedImage(header=Header(stamp=_stamp(clock, timestamp_ns), frame_id=sensor), format=fmt,
                            data=bytes(data))

@@ -14,12 +14,13 @@ from __future__ import annotations
 
 import enum
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 from .errors import require
 from .reading import ForceReading
-from .ros2_messages import DiagnosticArray, StampClock, WrenchStamped, dds_topic, diagnostic_message, ros_topic, \
-    wrench_message
+from .ros2_names import StampClock, dds_topic, ros_topic
 
 #: DDS allows domain ids 0..232 (ROS 2 recommends 0..101 on Linux).
 MAX_DOMAIN_ID = 232
@@ -40,12 +41,11 @@ class QosProfile(str, enum.Enum):
             raise ValueError(f"ROS 2 qos {value!r}: expected one of {[q.value for q in cls]}") from None
 
 
-def domain_from_env(domain_id: int | None = None, env: dict[str, str] | None = None) -> int:
+def domain_from_env(domain_id: int | None = None, env: Mapping[str, str] | None = None) -> int:
     """``domain_id`` when given, else ``ROS_DOMAIN_ID`` from the environment, else 0;
     ValueError naming the source when it is not an integer in 0..232."""
-    env = os.environ if env is None else env
     if domain_id is None:
-        text = env.get("ROS_DOMAIN_ID", "").strip()
+        text = (os.environ if env is None else env).get("ROS_DOMAIN_ID", "").strip()
         if not text:
             return 0
         try:
@@ -122,11 +122,20 @@ class Ros2Publisher:
         from cyclonedds.pub import DataWriter
         from cyclonedds.topic import Topic
 
+        from .ros2_messages import (
+            DiagnosticArray,
+            WrenchStamped,
+            diagnostic_message,
+            wrench_message,
+        )
+
+        self._wrench_message, self._diagnostic_message = wrench_message, diagnostic_message
+
         q = dds_qos(self.qos)
-        self._participant = DomainParticipant(self.domain_id)
-        self._force = DataWriter(self._participant, Topic(self._participant, self.topics.dds_force, WrenchStamped,
+        self._participant: Any = DomainParticipant(self.domain_id)
+        self._force: Any = DataWriter(self._participant, Topic(self._participant, self.topics.dds_force, WrenchStamped,
                                                           qos=q), qos=q)
-        self._diag = None
+        self._diag: Any = None
         if self.topics.dds_diagnostics:
             self._diag = DataWriter(self._participant, Topic(self._participant, self.topics.dds_diagnostics,
                                                              DiagnosticArray, qos=q), qos=q)
@@ -136,9 +145,9 @@ class Ros2Publisher:
         """Publish one reading (WrenchStamped, then DiagnosticArray)."""
         if self._closed:
             raise RuntimeError(f"ROS 2 publisher on {self.topics.force}: write after close")
-        self._force.write(wrench_message(reading, self.clock))
+        self._force.write(self._wrench_message(reading, self.clock))
         if self._diag is not None:
-            self._diag.write(diagnostic_message(reading, self.clock))
+            self._diag.write(self._diagnostic_message(reading, self.clock))
         self.published += 1
 
     def close(self) -> None:
@@ -147,13 +156,13 @@ class Ros2Publisher:
             return
         self._closed = True
         self._diag = None
-        self._force = None  # type: ignore[assignment]
+        self._force = None
         participant, self._participant = self._participant, None
         # The binding deletes an entity when its Python object goes; the participant's
         # deletion takes its writers and topics with it (subscribers see them leave).
         participant.__del__()
 
-    def __enter__(self) -> Ros2Publisher:
+    def __enter__(self) -> Ros2Publisher:  # noqa: PYI034
         return self
 
     def __exit__(self, *exc) -> None:

@@ -46,7 +46,8 @@ STAGES = ("source", "gate", "depth", "inference", "total")
 class ForceModel(Protocol):
     """What the runtime needs from a backend (OnnxForceModel, the OAK backend)."""
 
-    needs_depth: bool
+    @property
+    def needs_depth(self) -> bool: ...
 
     def predict(self, rgb: np.ndarray, depth: np.ndarray | None = None) -> np.ndarray: ...
 
@@ -477,14 +478,20 @@ class ForceRuntime:
 
     def _infer(self, pending: list[_Pending], out: list[ForceReading]) -> None:
         n = len(pending)
-        for k, p in enumerate(pending):
-            self._rgb[k] = p.frame
-            if p.depth is not None:
-                self._depth[k] = p.depth.reshape(self._depth.shape[1:])
+        if n == 1:  # views, no copy: the model copies into its own bound input buffer
+            p0 = pending[0]
+            rgb = p0.frame[None]
+            depth = p0.depth.reshape(1, *self._depth.shape[1:]) if p0.depth is not None else None
+        else:
+            for k, p in enumerate(pending):
+                self._rgb[k] = p.frame
+                if p.depth is not None:
+                    self._depth[k] = p.depth.reshape(self._depth.shape[1:])
+            rgb, depth = self._rgb[:n], self._depth[:n] if self.needs_depth else None
         t0 = self.clock()
         error = ""
         try:
-            forces = self.model.predict(self._rgb[:n], self._depth[:n] if self.needs_depth else None)
+            forces = self.model.predict(rgb, depth)
         except Exception as exc:  # a backend failure must not stop the other readings
             forces, error = np.full(n, np.nan, np.float32), f"inference failed: {type(exc).__name__}: {exc}"
         inf_ms = self._ms(t0, self.clock())

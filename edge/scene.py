@@ -48,7 +48,8 @@ import tempfile
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 from .errors import AcceleratorUnavailableError, BundleError, SceneError, SourceError
 from .gate import ContactGate, GateOptions
@@ -87,7 +88,7 @@ class SensorSpec:
     n_grasps: int = 3
 
     @property
-    def kind(self) -> "SourceKind":
+    def kind(self) -> SourceKind:
         return SOURCE_KINDS[self.source]
 
 
@@ -245,12 +246,14 @@ def _open_gelsight_mini(s: SensorSpec, clock: Clock):
 def _open_replay(s: SensorSpec, clock: Clock):
     from .sources import ReplayFolderSource
 
+    assert s.path is not None  # required key of the kind
     return ReplayFolderSource(s.path, fps=s.fps, name=s.name, clock=clock)
 
 
 def _open_video(s: SensorSpec, clock: Clock):
     from .sources import VideoFileSource
 
+    assert s.path is not None  # required key of the kind
     return VideoFileSource(s.path, fps=s.fps, name=s.name, clock=clock)
 
 
@@ -386,6 +389,8 @@ def _sensor(t: Any, i: int, gate_table: dict, base: Path, where: str) -> SensorS
     name = _value(t, "name", Key((str,), f"sensor{i}", "a non-empty name", lambda v: bool(v)), ws)
     values: dict[str, Any] = {}
     for k, key in kind.keys.items():
+        if key.required and k not in t:
+            raise _err(ws, f"source '{src}' needs '{k}' ({key.expected})")
         v = _value(t, k, key, ws)
         if v is not None and key.path:
             v = _in_path(base, v)
@@ -464,7 +469,8 @@ def parse_scene(data: dict, path: Path | None, base: Path | None = None) -> Scen
 def _readable(p: Path, want: str) -> str | None:
     """Why ``p`` cannot be read as ``want`` ('file', 'folder' or 'file or folder'), else None."""
     if not p.exists():
-        return f"{p} not found"
+        unset = [w for w in str(p).split("/") if w.startswith("$")]
+        return f"{p} not found" + (f" (environment variable {unset[0]} is not set)" if unset else "")
     if want == "file" and not p.is_file():
         return f"{p} is not a file"
     if want == "folder" and not p.is_dir():
@@ -514,9 +520,9 @@ def scene_problems(scene: Scene) -> list[str]:
     for b in scene.bundles:
         if (p := _readable(b, "folder")) or (p := _readable(b / "model.json", "file")):
             out.append(f"{where} [runtime] bundle: {p} (expected a bundle folder with model.json)")
-    if scene.backend == "oak" and scene.oak_archive is not None and scene.fallback != "cpu":
-        if p := _readable(scene.oak_archive, "file"):
-            out.append(f"{where} [runtime] oak_archive: {p}")
+    if (scene.backend == "oak" and scene.oak_archive is not None and scene.fallback != "cpu"
+            and (p := _readable(scene.oak_archive, "file"))):
+            out.append(f"{where} [runtime] oak_archive: {p} (or set fallback = \"cpu\" to run on the CPU without it)")
     if "mapping" in scene.depth and (p := _readable(Path(scene.depth["mapping"]), "file")):
         out.append(f"{where} [depth] mapping: {p}")
     for i, s in enumerate(scene.sensors):
@@ -746,7 +752,7 @@ def open_source(s: SensorSpec, clock: Clock | None = None):
     return s.kind.opener(s, clock or time.monotonic_ns)
 
 
-def load_model(scene: Scene) -> tuple[object, str, list[str]]:
+def load_model(scene: Scene) -> tuple[Any, str, list[str]]:
     """(model, backend actually used, notes) for the scene's bundle(s) and backend."""
     from .inference import OnnxForceModel, choose_bundle
 
@@ -765,7 +771,8 @@ def load_model(scene: Scene) -> tuple[object, str, list[str]]:
                                  "set fallback = \"cpu\" in [runtime] to run on the CPU instead") from None
             notes.append(f"OAK unavailable ({exc}); falling back to the CPU")
     if len(scene.bundles) > 1:
-        model, choice = choose_bundle(scene.bundles, scene.deadline_ms, threads=scene.threads)
+        ladder: list[str | os.PathLike] = list(scene.bundles)
+        model, choice = choose_bundle(ladder, scene.deadline_ms, threads=scene.threads)
         notes.append(choice.reason)
         return model, "cpu", notes
     return OnnxForceModel(scene.bundles[0], threads=scene.threads), "cpu", notes
@@ -778,17 +785,19 @@ def open_outputs(scene: Scene, p99_ms=None) -> list:
     sinks: list = []
     try:
         for o in scene.outputs:
+            path = o.path if o.path is not None else Path(os.devnull)  # file outputs always have one
             if o.kind == "csv":
-                sinks.append(CsvWriter(o.path, fsync=o.fsync))
+                sinks.append(CsvWriter(path, fsync=o.fsync))
             elif o.kind == "jsonl":
-                sinks.append(JsonlWriter(o.path, fsync=o.fsync))
+                sinks.append(JsonlWriter(path, fsync=o.fsync))
             elif o.kind == "mcap":
-                from .mcap_output import McapWriter
+                from .mcap_output import McapWriter  # the 'mcap' extra, imported only now
 
-                sinks.append(McapWriter(o.path))
+                sinks.append(McapWriter(path))
             elif o.kind == "ros2":
-                from .ros2_output import Ros2Publisher
+                from .ros2_output import Ros2Publisher  # the 'ros2' extra, imported only now
 
+                assert o.topic is not None  # parse_scene requires it
                 sinks.append(Ros2Publisher(o.topic))
             else:
                 sinks.append(StdoutWriter(live=o.live, p99_ms=p99_ms, every=4))
@@ -902,7 +911,7 @@ def build_scene(scene: Scene, clock: Clock | None = None, warn: Callable[[str], 
             # image, it is set here; learnt from frames, the runtime sets it once learnt.
             if sensor.depth is not None and getattr(sensor.depth, "needs_reference", False) \
                     and sensor.name in backgrounds:
-                sensor.depth.set_reference(backgrounds[sensor.name])
+                sensor.depth.set_reference(backgrounds[sensor.name])  # type: ignore[attr-defined]
         sinks = open_outputs(scene, p99_ms=lambda: runtime.latency()["total"]["p99"])
     except BaseException:
         if runtime is not None:

@@ -377,10 +377,10 @@ class ReplayFolderSource(_FileSequenceSource):
 
     def _load(self, i: int) -> tuple[np.ndarray | None, float | None, dict]:
         path = self._files[i]
-        img = cv2.imread(str(path), cv2.IMREAD_COLOR)
-        if img is None and not path.is_file():
+        if not path.is_file():
             raise SourceError(f"replay folder {self.path}: frame {path.name} disappeared during the run "
                               "(folder deleted, moved or unmounted?)")
+        img = cv2.imread(str(path), cv2.IMREAD_COLOR)
         frame = _fit(img, self.shape) if img is not None else None
         truth = None
         meta: dict = {"path": str(path)}

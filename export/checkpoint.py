@@ -57,7 +57,7 @@ def load_checkpoint(path: str | os.PathLike) -> Checkpoint:
         raise CheckpointError(f"{p}: not a readable PyTorch checkpoint (truncated or another file type: {first})") from None
     meta: dict = {}
     if isinstance(obj, dict) and "state_dict" in obj:
-        meta = obj.get(META_KEY) or {}
+        meta = check_metadata(obj.get(META_KEY), p)
         obj = obj["state_dict"]
     if not isinstance(obj, dict) or not obj or not all(isinstance(v, torch.Tensor) for v in obj.values()):
         raise CheckpointError(
@@ -66,6 +66,61 @@ def load_checkpoint(path: str | os.PathLike) -> Checkpoint:
     if all(k.startswith("module.") for k in sd):
         sd = {k[len("module."):]: v for k, v in sd.items()}
     return Checkpoint(path=p, state_dict=sd, meta=dict(meta))
+
+
+_PLAIN = (str, int, float, bool, type(None))
+
+
+def _plain(value: object, depth: int = 0) -> bool:
+    """True for JSON-like values: text, finite numbers, booleans, None, and lists/dicts of them."""
+    if isinstance(value, float):
+        return value == value and value not in (float("inf"), float("-inf"))
+    if isinstance(value, _PLAIN):
+        return True
+    if depth >= 4:
+        return False
+    if isinstance(value, (list, tuple)):
+        return all(_plain(v, depth + 1) for v in value)
+    if isinstance(value, dict):
+        return all(isinstance(k, str) and _plain(v, depth + 1) for k, v in value.items())
+    return False
+
+
+def _number(meta: dict, key: str, path: Path, lo: float, hi: float, what: str) -> None:
+    v = meta.get(key)
+    if key not in meta:
+        return
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not lo < float(v) <= hi:
+        raise CheckpointError(f"{path}: metadata '{META_KEY}.{key}' is {v!r}; expected {what}")
+
+
+def check_metadata(raw: object, path: Path) -> dict:
+    """Our checkpoint metadata, validated before any export work: a dict with text keys;
+    ``variant`` a known variant, ``width`` a number in (0, 4], ``input_scale`` 1/k in (0, 1],
+    every other value plain data (text, finite numbers, booleans, None, lists/dicts of them).
+    None means no metadata. CheckpointError naming the file and the key otherwise."""
+    if raw is None:
+        return {}
+    if not isinstance(raw, dict):
+        raise CheckpointError(f"{path}: metadata '{META_KEY}' is a {type(raw).__name__}; expected a dict such as "
+                              "{'variant': 'rgbmod', 'width': 0.25, 'input_scale': 0.25, 'trained_on': '...'}")
+    for key, value in raw.items():
+        if not isinstance(key, str):
+            raise CheckpointError(f"{path}: metadata '{META_KEY}' has the key {key!r}; expected text keys")
+        if not _plain(value):
+            raise CheckpointError(f"{path}: metadata '{META_KEY}.{key}' holds a {type(value).__name__}; expected text, "
+                                  "a finite number, a boolean or lists/dicts of those (no tensors or objects)")
+    if "variant" in raw:
+        if not isinstance(raw["variant"], str):
+            raise CheckpointError(f"{path}: metadata '{META_KEY}.variant' is {raw['variant']!r}; expected text such "
+                                  "as 'rgbmod'")
+        try:
+            check_variant(raw["variant"])
+        except TactileForceError as exc:
+            raise CheckpointError(f"{path}: metadata '{META_KEY}.variant': {exc}") from None
+    _number(raw, "width", path, 0.0, 4.0, "a channel width multiplier in (0, 4], e.g. 0.25")
+    _number(raw, "input_scale", path, 0.0, 1.0, "an input scale 1/k in (0, 1], e.g. 0.25")
+    return dict(raw)
 
 
 def _describe(keys: list[str], limit: int = 12) -> str:

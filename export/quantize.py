@@ -4,7 +4,8 @@ int8 static: activations uint8, weights int8 per channel (or per tensor), QDQ fo
 recommended format for ONNX Runtime on x86/ARM CPUs; ORT fuses each
 DequantizeLinear -> Conv -> QuantizeLinear group into an integer QLinearConv at load time.
 The final linear layer (and the reshape after it) stays float, so forces are not snapped
-to an 8-bit grid; the graph's uint8 input and float32 ``force_n`` output are unchanged.
+to an 8-bit grid, and so do the pooled features and their concatenation that feed it
+(``float_head_inputs``; docs/benchmarks/int8_head.md); the graph's uint8 input and float32 ``force_n`` output are unchanged.
 The quantized model is compared with the fp32 one on real frames (and with ground truth
 when the frames are labelled), using the paper's RE / MAE, and the figures go into the
 manifest. Nothing is written unless every step succeeds.
@@ -52,7 +53,8 @@ class QuantizeOptions:
 
     mode: 'int8-static' | 'int8-dynamic' | 'fp16'. method (int8-static): 'minmax' |
     'entropy' | 'percentile'. keep_float: extra node names to leave in float (the final
-    linear layer always is). histogram_bins: histogram size for entropy/percentile (entropy's
+    linear layer always is). float_head_inputs: also keep the pooled features and their
+    concatenation feeding the final linear layer in float (:func:`head_input_nodes`). histogram_bins: histogram size for entropy/percentile (entropy's
     threshold search time grows with it). min/max_calibration_frames bound the frames used.
     """
 
@@ -67,6 +69,32 @@ class QuantizeOptions:
     name: str = ""
     overwrite: bool = False
     show_progress: bool = False
+    float_head_inputs: bool = True
+
+
+#: Ops between the trunk's feature maps and the final linear layer: global pooling, reshapes
+#: and the concatenation of the pooled features. Kept in float with ``float_head_inputs``.
+HEAD_INPUT_OPS = ("ReduceMean", "GlobalAveragePool", "Flatten", "Reshape", "Squeeze", "Unsqueeze", "Concat")
+
+
+def head_input_nodes(model, final_layer: str) -> list[str]:
+    """Names of the nodes that make the final linear layer's input: the concatenation of the
+    pooled features and the pooling itself (walking back from ``final_layer`` through
+    :data:`HEAD_INPUT_OPS` only). Quantizing those vectors put most of the int8 error of
+    full-resolution RGBmod into the force (issue 15: 0.193 N -> 0.043 N max when kept float)."""
+    producers = {o: n for n in model.graph.node for o in n.output}
+    node = next((n for n in model.graph.node if n.name == final_layer), None)
+    if node is None:
+        return []
+    found: list[str] = []
+    frontier = [node.input[0]]
+    while frontier:
+        n = producers.get(frontier.pop())
+        if n is None or n.op_type not in HEAD_INPUT_OPS or n.name in found:
+            continue
+        found.append(n.name)
+        frontier.extend(n.input)
+    return found
 
 
 def _ort_quant():
@@ -258,7 +286,8 @@ def quantize_bundle(src: Bundle | str | os.PathLike, dest: str | os.PathLike, op
             raise QuantizeError(f"--keep-float: no node named {', '.join(unknown)} in {bundle.onnx_path.name} "
                                 f"(e.g. {sample}; list them with 'tactile-force bundle show --nodes')")
         final = producer_chain(model, OUTPUT_NAME)
-        exclude = list(dict.fromkeys(final + list(o.keep_float)))
+        head = head_input_nodes(model, final[-1]) if o.float_head_inputs else []
+        exclude = list(dict.fromkeys(final + head + list(o.keep_float)))
         if o.mode == "int8-static":
             info = _static(pre, out, calib, exclude, o)  # type: ignore[arg-type]
         elif o.mode == "int8-dynamic":

@@ -1,8 +1,10 @@
 """Find attached DIGIT / GelSight Mini / OAK devices and say what is wrong with them.
 
-Linux: read from sysfs (no extra dependency, no permission needed). Elsewhere, or when
-sysfs has no USB tree: pyusb (the ``usb`` extra). :func:`classify` turns a raw
-:class:`UsbDeviceInfo` into an :class:`AttachedDevice` with plain-language problems.
+Linux: through libudev with pyudev (the ``usb`` extra, what digit-interface uses), or
+straight from sysfs when pyudev or libudev is absent (no permission needed either way).
+Elsewhere, or when sysfs has no USB tree: pyusb (the ``usb`` extra). :func:`classify`
+turns a raw :class:`UsbDeviceInfo` into an :class:`AttachedDevice` with plain-language
+problems. Hot-plug events (unplug / replug) come from :mod:`.hotplug`.
 """
 
 from __future__ import annotations
@@ -11,10 +13,10 @@ import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Iterable
+from typing import Any, Callable, Iterable
 
 from ..edge.errors import SourceError, require
-from .sysfs import UsbDeviceInfo, scan_sysfs
+from .sysfs import UsbDeviceInfo, scan_sysfs, scan_udev
 from .usb_ids import DIGIT_RGB_INTENSITY_MIN_REVISION, HIGH_SPEED_MBPS, DeviceKind, bcd_to_revision, classify_ids
 
 #: The udev rules file shipped with the package, and where it goes.
@@ -151,17 +153,42 @@ class DiscoveryResult:
     """What :func:`discover` found: known devices, how it looked, and why it may have seen nothing."""
 
     devices: list[AttachedDevice]
-    method: str  # 'sysfs' | 'pyusb' | 'none'
+    method: str  # 'udev' | 'sysfs' | 'pyusb' | 'none'
     note: str = ""
 
     def of_kind(self, *kinds: DeviceKind) -> list[AttachedDevice]:
         return [d for d in self.devices if d.kind in kinds]
 
 
+def udev_context() -> Any | None:
+    """A ``pyudev.Context``, or None when pyudev is not installed or libudev cannot be
+    loaded (containers, non-Linux): callers then fall back to sysfs."""
+    try:
+        import pyudev
+    except ImportError:
+        return None
+    try:
+        return pyudev.Context()
+    except (ImportError, OSError):  # pyudev raises ImportError when libudev.so is missing
+        return None
+
+
+_DEFAULT_ROOTS = ("/sys", "/dev")
+
+
 def discover(sys_root: str | os.PathLike = "/sys", dev_root: str | os.PathLike = "/dev",
-             find: Callable[..., Iterable] | None = None) -> DiscoveryResult:
-    """Find the DIGIT / GelSight Mini / OAK devices attached to this host (others are dropped)."""
-    if (Path(sys_root) / "bus" / "usb" / "devices").is_dir() and find is None:
+             find: Callable[..., Iterable] | None = None, context: Any | None = None) -> DiscoveryResult:
+    """Find the DIGIT / GelSight Mini / OAK devices attached to this host (others are dropped).
+
+    Order: libudev through ``context`` (default: pyudev's, when the default roots are used
+    and libudev loads), then sysfs under ``sys_root``, then pyusb (``find``). Tests pass a
+    fake ``context``, fake roots or a fake ``find``.
+    """
+    if context is None and find is None and (str(sys_root), str(dev_root)) == _DEFAULT_ROOTS:
+        context = udev_context()
+    if context is not None and find is None:
+        infos, method, note = scan_udev(context), "udev", ""
+    elif (Path(sys_root) / "bus" / "usb" / "devices").is_dir() and find is None:
         infos, method, note = scan_sysfs(sys_root, dev_root), "sysfs", ""
     else:
         try:

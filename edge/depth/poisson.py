@@ -90,11 +90,10 @@ class PoissonSolver:
             try:
                 import scipy.fft  # noqa: F401
                 return "scipy"
-            except ImportError:
+            except ImportError:  # SciPy is a core dependency; a broken install falls back to numpy
                 if backend == "scipy":
-                    from ..errors import require
-
-                    require("scipy", "depth", "the SciPy DST-I backend")
+                    raise ImportError("PoissonSolver backend 'scipy': SciPy (a core dependency of tactile-force) "
+                                      "is not importable; reinstall it with: pip install 'scipy>=1.10'") from None
         return "numpy"
 
     def _dst2d(self, x: np.ndarray) -> np.ndarray:

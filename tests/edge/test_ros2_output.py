@@ -22,16 +22,21 @@ os.environ["CYCLONEDDS_URI"] = LOOPBACK_XML.as_uri()  # before any participant e
 
 pytest.importorskip("cyclonedds", reason="ROS 2 output needs cyclonedds (the 'ros2' extra)")
 
-from cyclonedds.core import DDSException  # noqa: E402
-from cyclonedds.domain import DomainParticipant  # noqa: E402
-from cyclonedds.qos import Policy, Qos  # noqa: E402
-from cyclonedds.sub import DataReader  # noqa: E402
-from cyclonedds.topic import Topic  # noqa: E402
-from cyclonedds.util import duration  # noqa: E402
-
-from tactile_force.edge.reading import Flags, ForceReading, StageLatency  # noqa: E402
-from tactile_force.edge.ros2_messages import DiagnosticArray, StampClock, WrenchStamped, dds_topic, ros_topic  # noqa: E402
-from tactile_force.edge.ros2_output import Ros2Publisher, domain_from_env, dds_qos, QosProfile  # noqa: E402
+from cyclonedds.core import DDSException
+from cyclonedds.domain import DomainParticipant
+from cyclonedds.qos import Policy, Qos
+from cyclonedds.sub import DataReader
+from cyclonedds.topic import Topic
+from cyclonedds.util import duration
+from tactile_force.edge.reading import Flags, ForceReading, StageLatency
+from tactile_force.edge.ros2_messages import DiagnosticArray, WrenchStamped
+from tactile_force.edge.ros2_names import StampClock, dds_topic, ros_topic
+from tactile_force.edge.ros2_output import (
+    QosProfile,
+    Ros2Publisher,
+    dds_qos,
+    domain_from_env,
+)
 
 SENSOR_QOS = Qos(Policy.Reliability.BestEffort, Policy.History.KeepLast(50), Policy.Durability.Volatile)
 
@@ -164,7 +169,7 @@ def test_participant_stays_on_loopback(tmp_path, monkeypatch):
         pub.write(_reading(0, 1.0, Flags.NONE))
         text = trace.read_text()
         try:
-            ss = subprocess.run(["ss", "-uanpH"], capture_output=True, text=True, timeout=10).stdout
+            ss = subprocess.run(["ss", "-uanpH"], check=False, capture_output=True, text=True, timeout=10).stdout
         except (OSError, subprocess.SubprocessError):
             ss = ""
     assert "selected interfaces: lo " in text and "ownip: udp/127.0.0.1" in text
@@ -179,18 +184,11 @@ def test_participant_stays_on_loopback(tmp_path, monkeypatch):
 
 
 def test_missing_cyclonedds_names_the_extra(monkeypatch):
-    import builtins
+    import sys
 
     from tactile_force.edge.errors import MissingExtraError
 
-    real_import = builtins.__import__
-
-    def no_cyclone(name, *a, **k):
-        if name == "cyclonedds" or name.startswith("cyclonedds."):
-            raise ImportError("No module named 'cyclonedds'")
-        return real_import(name, *a, **k)
-
-    monkeypatch.setattr(builtins, "__import__", no_cyclone)
+    monkeypatch.setitem(sys.modules, "cyclonedds", None)  # as if not installed: import raises ImportError
     with pytest.raises(MissingExtraError, match=r"tactile-force\[ros2\]"):
         Ros2Publisher("/x/force", domain_id=0)
 

@@ -13,7 +13,7 @@ import pytest
 
 from tactile_force.edge import SceneError
 from tactile_force.edge.cli import main as cli_main
-from tactile_force.edge.cli_runtime import _plot_cv, run_demo
+from tactile_force.edge.cli_runtime import PLOT_NAME, _plot_cv, run_demo
 from tactile_force.edge.dataset import AuthorsDataset, AuthorsDatasetWriter
 from tactile_force.edge.scene import build_scene, default_bundle_path, describe_scene, load_scene
 from tactile_force.edge.sources import ReplayFolderSource
@@ -37,11 +37,11 @@ def _scene(tmp_path: Path, bundle: Path, aurova: Path, extra: str = "", name: st
 
         [[output]]
         kind = "csv"
-        path = "out/readings.csv"
+        path = "{tmp_path}/out/readings.csv"
 
         [[output]]
         kind = "jsonl"
-        path = "out/readings.jsonl"
+        path = "{tmp_path}/out/readings.jsonl"
         """) + extra
     p = tmp_path / name
     p.write_text(text)
@@ -134,12 +134,16 @@ def test_oak_scene_without_oak_falls_back_or_fails_clearly(tmp_path, rgb_bundle,
         assert "fallback" in str(exc)
 
 
-def test_example_scenes_parse():
+def test_example_scenes_parse_and_write_outside_the_package(tmp_path, monkeypatch):
+    monkeypatch.setenv("TACTILE_FORCE_SHARED_DATA", str(shared_data()))
+    monkeypatch.chdir(tmp_path)
     for p in sorted((REPO / "edge" / "scenes").glob("*.toml")):
-        scene = load_scene(p)
+        scene = load_scene(p)  # paths checked too: the replay scene's inputs exist, outputs are writable
         lines = describe_scene(scene)
         assert any("inference" in line for line in lines), p
         assert scene.bundles == [default_bundle_path()]
+        for o in scene.outputs:  # relative output paths land in the working directory
+            assert o.path is None or o.path.parent == tmp_path, (p, o.path)
 
 
 def _grasp_dataset(tmp_path: Path, aurova_dir: Path) -> Path:
@@ -186,4 +190,4 @@ def test_demo_cli_with_virtual_digit_and_default_bundle(tmp_path, capsys):
     if not (default_bundle_path() / "model.json").is_file():
         pytest.skip(f"default bundle not shipped yet at {default_bundle_path()}")
     assert cli_main(["demo", "--out", str(tmp_path / "d"), "--grasps", "1"]) == 0
-    assert (tmp_path / "d" / "summary.json").is_file() and (tmp_path / "d" / "force.png").is_file()
+    assert (tmp_path / "d" / "summary.json").is_file() and (tmp_path / "d" / PLOT_NAME).is_file()

@@ -1,0 +1,233 @@
+"""Log readings (and optionally frames and contact masks) to an MCAP file (the ``mcap`` extra).
+
+The file uses the ROS 2 profile: ``ros2msg`` schemas and CDR messages, the same types and
+topics as the live ROS 2 output, so ``ros2 bag info/play`` and Foxglove open it:
+
+- ``/tactile/force`` (``topic``): geometry_msgs/msg/WrenchStamped, force.z in N (NaN: no estimate)
+- ``/tactile/force/diagnostics``: diagnostic_msgs/msg/DiagnosticArray (flags, latency in ms)
+- ``/tactile/<sensor>/image/compressed``: sensor_msgs/msg/CompressedImage, JPEG of the
+  HxWx3 uint8 BGR frame (``frames=True``)
+- ``/tactile/<sensor>/contact_mask/compressed``: sensor_msgs/msg/CompressedImage, PNG of
+  the HxW contact mask, 255 = contact (``mask=True``)
+
+Crash-safe: the chunk in progress is closed and written out every ``flush_every``
+readings (default every reading, like the CSV/JSONL writers), so a run killed at any
+moment leaves a file whose complete chunks an MCAP reader reads (:func:`read_messages`
+with ``recover=True``); ``close()`` writes the summary and footer.
+"""
+
+from __future__ import annotations
+
+import os
+import struct
+from collections.abc import Iterator
+from pathlib import Path
+from typing import IO, NamedTuple
+
+import cv2
+import numpy as np
+
+from .errors import require
+from .reading import ForceReading
+from .ros2_names import StampClock, ros_topic
+
+#: JPEG quality of logged frames (0..100).
+JPEG_QUALITY = 90
+
+
+class McapMessage(NamedTuple):
+    """One message read back: topic, ROS 2 type name, log time (ns since the epoch), CDR bytes."""
+
+    topic: str
+    type_name: str
+    log_time_ns: int
+    data: bytes
+
+
+class McapWriter:
+    """A reading sink that writes one MCAP file in the ROS 2 profile.
+
+    Parameters
+    ----------
+    path : str or PathLike
+        Output file (parent folders are made).
+    frames : bool
+        Accept frames through :meth:`write_frame` (JPEG CompressedImage per sensor).
+    mask : bool
+        Accept contact masks through :meth:`write_frame` (PNG CompressedImage per sensor).
+    topic : str
+        ROS 2 topic of the readings; diagnostics go on ``topic + '/diagnostics'``, images
+        under the topic's parent namespace.
+    flush_every : int
+        Close the chunk and flush the file every this many readings (>= 1).
+    fsync : bool
+        Also force each flush to the disk (slower).
+    stamp_clock : StampClock, optional
+        Monotonic frame time -> ROS time; default the wall - monotonic offset at start.
+    """
+
+    def __init__(self, path: str | os.PathLike, *, frames: bool = False, mask: bool = False,
+                 topic: str = "/tactile/force", flush_every: int = 1, fsync: bool = False,
+                 stamp_clock: StampClock | None = None) -> None:
+        if isinstance(flush_every, bool) or not isinstance(flush_every, int) or flush_every < 1:
+            raise ValueError(f"MCAP flush_every={flush_every!r}: expected an integer >= 1")
+        self.topic = ros_topic(topic, "MCAP topic")
+        self.namespace = self.topic.rsplit("/", 1)[0]
+        self.frames = frames
+        self.mask = mask
+        self.flush_every = flush_every
+        self.fsync = fsync
+        self.clock = stamp_clock or StampClock()
+        self.path = Path(path)
+        require("mcap", "mcap", "MCAP output")
+        require("cyclonedds", "mcap", "MCAP output (CDR serialisation)")
+        from mcap.writer import CompressionType, Writer
+
+        from . import ros2_messages as msgs
+
+        self._msgs = msgs
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._fh: IO[bytes] = open(self.path, "wb")  # noqa: SIM115 - held open until close()
+        # Chunks hold a reading or a few; compressing them gains little, and JPEG/PNG are compressed.
+        self._writer = Writer(self._fh, compression=CompressionType.NONE)
+        self._writer.start(profile="ros2", library="tactile-force")
+        self._schemas: dict[str, int] = {}
+        self._channels: dict[str, int] = {}
+        self._sequence: dict[int, int] = {}
+        self._since_flush = 0
+        self.readings = 0
+        self._closed = False
+        self._channel(self.topic, msgs.WRENCH_STAMPED)
+        self._channel(self.topic + "/diagnostics", msgs.DIAGNOSTIC_ARRAY)
+        self._flush()
+
+    # -- channels ---------------------------------------------------------------------------------
+    def _channel(self, topic: str, type_name: str) -> int:
+        if topic in self._channels:
+            return self._channels[topic]
+        if type_name not in self._schemas:
+            self._schemas[type_name] = self._writer.register_schema(
+                name=type_name, encoding="ros2msg", data=self._msgs.MSG_DEFINITIONS[type_name].encode())
+        cid = self._writer.register_channel(topic=topic, message_encoding="cdr", schema_id=self._schemas[type_name])
+        self._channels[topic] = cid
+        return cid
+
+    def image_topic(self, sensor: str, what: str = "image") -> str:
+        """``<namespace>/<sensor>/<what>/compressed``; ValueError when ``sensor`` is not a valid
+        ROS 2 name token."""
+        return ros_topic(f"{self.namespace}/{sensor}/{what}/compressed", f"MCAP image topic for sensor {sensor!r}")
+
+    def _add(self, topic: str, type_name: str, monotonic_ns: int, data: bytes) -> None:
+        cid = self._channel(topic, type_name)
+        t = self.clock.ros_ns(monotonic_ns)
+        seq = self._sequence.get(cid, 0)
+        self._sequence[cid] = seq + 1
+        self._writer.add_message(channel_id=cid, log_time=t, publish_time=t, data=data, sequence=seq)
+
+    def _flush(self) -> None:
+        self._writer.flush()  # closes the chunk in progress and flushes the stream
+        if self.fsync:
+            os.fsync(self._fh.fileno())
+        self._since_flush = 0
+
+    # -- sink protocol ----------------------------------------------------------------------------
+    def write(self, reading: ForceReading) -> None:
+        """Log one reading (WrenchStamped + DiagnosticArray)."""
+        if self._closed:
+            raise RuntimeError(f"MCAP file {self.path}: write after close")
+        m = self._msgs
+        self._add(self.topic, m.WRENCH_STAMPED, reading.timestamp_ns,
+                  m.wrench_message(reading, self.clock).serialize())
+        self._add(self.topic + "/diagnostics", m.DIAGNOSTIC_ARRAY, reading.timestamp_ns,
+                  m.diagnostic_message(reading, self.clock).serialize())
+        self.readings += 1
+        self._since_flush += 1
+        if self._since_flush >= self.flush_every:
+            self._flush()
+
+    def write_frame(self, sensor: str, timestamp_ns: int, frame_bgr: np.ndarray | None,
+                    mask: np.ndarray | None = None) -> None:
+        """Log the frame (HxWx3 uint8 BGR, JPEG) and/or contact mask (HxW bool or uint8,
+        non-zero = contact, PNG) of a reading; each only when enabled at construction.
+        Flushed with the next reading. ValueError for a wrong shape or dtype."""
+        if self._closed:
+            raise RuntimeError(f"MCAP file {self.path}: write after close")
+        m = self._msgs
+        if self.frames and frame_bgr is not None:
+            if frame_bgr.ndim != 3 or frame_bgr.shape[2] != 3 or frame_bgr.dtype != np.uint8:
+                raise ValueError(f"MCAP frame of {sensor}: shape {frame_bgr.shape} {frame_bgr.dtype}; "
+                                 "expected HxWx3 uint8 BGR")
+            ok, buf = cv2.imencode(".jpg", frame_bgr, [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
+            if not ok:
+                raise ValueError(f"MCAP frame of {sensor}: OpenCV could not encode it as JPEG")
+            self._add(self.image_topic(sensor), m.COMPRESSED_IMAGE, timestamp_ns,
+                      m.compressed_image(sensor, timestamp_ns, buf.tobytes(), "jpeg", self.clock).serialize())
+        if self.mask and mask is not None:
+            if mask.ndim != 2 or mask.dtype not in (np.bool_, np.uint8):
+                raise ValueError(f"MCAP contact mask of {sensor}: shape {mask.shape} {mask.dtype}; "
+                                 "expected HxW bool or uint8")
+            ok, buf = cv2.imencode(".png", np.where(mask != 0, 255, 0).astype(np.uint8))
+            if not ok:
+                raise ValueError(f"MCAP contact mask of {sensor}: OpenCV could not encode it as PNG")
+            self._add(self.image_topic(sensor, "contact_mask"), m.COMPRESSED_IMAGE, timestamp_ns,
+                      m.compressed_image(sensor, timestamp_ns, buf.tobytes(), "png", self.clock).serialize())
+
+    def close(self) -> None:
+        """Write the last chunk, the summary and the footer, and close the file; safe twice."""
+        if self._closed:
+            return
+        self._closed = True
+        try:
+            self._writer.finish()
+            self._fh.flush()
+            if self.fsync:
+                os.fsync(self._fh.fileno())
+        finally:
+            self._fh.close()
+
+    def __enter__(self) -> McapWriter:  # noqa: PYI034
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def read_messages(path: str | os.PathLike, recover: bool = False) -> Iterator[McapMessage]:
+    """The messages of an MCAP file in file order.
+
+    recover=False: the file must be complete (summary and footer); McapError otherwise.
+    recover=True: read record by record and stop quietly at the first truncated or damaged
+    record, as left by a killed run: every complete chunk before it is returned.
+    """
+    require("mcap", "mcap", "reading MCAP files")
+    from mcap.exceptions import InvalidMagic, McapError
+    from mcap.reader import make_reader
+    from mcap.records import Channel, Chunk, Message, Schema
+    from mcap.stream_reader import StreamReader, breakup_chunk
+
+    with open(path, "rb") as fh:
+        if not recover:
+            for schema, channel, message in make_reader(fh).iter_messages(log_time_order=False):
+                yield McapMessage(channel.topic, schema.name if schema else "", message.log_time, message.data)
+            return
+        schemas: dict[int, str] = {}
+        channels: dict[int, tuple[str, int]] = {}
+        records = StreamReader(fh, emit_chunks=True).records
+        while True:
+            try:
+                record = next(records)
+                inner = breakup_chunk(record, validate_crc=True) if isinstance(record, Chunk) else [record]
+            except StopIteration:
+                return
+            except InvalidMagic:
+                raise
+            except (McapError, EOFError, ValueError, IndexError, struct.error):  # truncated tail of a killed run
+                return
+            for rec in inner:
+                if isinstance(rec, Schema):
+                    schemas[rec.id] = rec.name
+                elif isinstance(rec, Channel):
+                    channels[rec.id] = (rec.topic, rec.schema_id)
+                elif isinstance(rec, Message):
+                    topic, schema_id = channels[rec.channel_id]
+                    yield McapMessage(topic, schemas.get(schema_id, ""), rec.log_time, rec.data)

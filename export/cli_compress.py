@@ -1,0 +1,73 @@
+"""``tactile-force compress``: distil a trained model into the sub-millisecond tier (needs the 'export' extra)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from tactile_force.edge.errors import TactileForceError
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("teacher", help="trained model: a .pth checkpoint (the authors' format or ours) or an fp32 "
+                                        "RGBmod bundle folder")
+    parser.add_argument("--frames", nargs="+", required=True, metavar="PATH",
+                        help="UNLABELLED frames: folders of 320x240 images, videos, authors'-layout datasets, "
+                             "'tactile-force record' output (several allowed)")
+    parser.add_argument("--out", required=True, help="output folder: bundle/ (the chosen student), work/ (cache, "
+                                                     "students; a rerun resumes from it), compress.json")
+    parser.add_argument("--labels", default=None,
+                        help="labelled frames (authors' layout): half mixed into training, half for evaluation")
+    parser.add_argument("--budget-ms", type=float, default=1.0,
+                        help="p99 budget of one batch-2 inference on this host, ms (default 1.0)")
+    parser.add_argument("--seed", type=int, default=0, help="seed for splits, training and augmentation")
+    parser.add_argument("--ladder", default=None,
+                        help="students as WIDTHxK list, e.g. 0.125x8,0.25x4,0.5x4 (default: 0.125x8,0.25x4,0.5x4,0.25x2)")
+    parser.add_argument("--epochs", type=int, default=30, help="training epochs per student (default 30)")
+    parser.add_argument("--max-frames", type=int, default=6000, help="unlabelled frames used at most (default 6000)")
+    parser.add_argument("--no-augment", action="store_true", help="no LED gain/offset, noise and shift augmentation")
+    parser.add_argument("--threads", type=int, default=None, help="torch threads for training (default: all cores)")
+
+
+def main(args: argparse.Namespace) -> int:
+    from tactile_force.edge.errors import BundleError
+
+    from .checkpoint import CheckpointError
+    from .compress import (
+        DEFAULT_LADDER,
+        CompressError,
+        CompressOptions,
+        compress_model,
+        parse_ladder,
+    )
+    from .training import Augment
+
+    try:
+        if args.epochs < 1 or args.max_frames < 20:
+            raise CompressError("--epochs must be >= 1 and --max-frames >= 20")
+        options = CompressOptions(teacher=args.teacher, frames=args.frames, out=args.out, labels=args.labels,
+                                  budget_ms=args.budget_ms, seed=args.seed,
+                                  ladder=parse_ladder(args.ladder) if args.ladder else DEFAULT_LADDER,
+                                  epochs=args.epochs, max_frames=args.max_frames, threads=args.threads,
+                                  augment=None if args.no_augment else Augment(),
+                                  show_progress=True)
+        result = compress_model(options)
+    except (CompressError, CheckpointError, BundleError) as exc:
+        print(f"tactile-force compress: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"tactile-force compress: interrupted; finished students are kept in {args.out}/work and a rerun "
+              "of the same command resumes", file=sys.stderr)
+        return 130
+    except TactileForceError:
+        raise
+    for r in result.students:
+        labels = f", vs labels RE {r['vs_labels']['re_mean']:.3f}" if "vs_labels" in r else ""
+        print(f"{r['name']:>18}: vs teacher RE {r['vs_teacher']['re_mean']:.3f} MAE {r['vs_teacher']['mae_mean']:.3f} N"
+              f"{labels}, p99 {r['p99_ms']:.3f} ms{' (resumed)' if r.get('resumed') else ''}")
+    if result.bundle is None:
+        print(f"tactile-force compress: no student fits the {args.budget_ms:g} ms budget on this host; students are "
+              f"in {args.out}/work, summary {result.summary_path}", file=sys.stderr)
+        return 1
+    print(f"chose {result.chosen['name']} (most accurate within {args.budget_ms:g} ms p99); wrote {result.bundle.path}")
+    return 0

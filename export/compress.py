@@ -1,0 +1,453 @@
+"""Distil a trained model into compact RGBmod students and keep the best one within a latency budget.
+
+    compress_model(CompressOptions(teacher="model.pth", frames=["frames/"], out="compressed"))
+
+Steps (``tactile-force compress``):
+
+1. read the UNLABELLED frames (plain image folders, videos, the authors' layout, ``record``
+   output) and, if given, labelled frames (authors' layout);
+2. run the teacher (a checkpoint, authors' format or ours, or an fp32 bundle through ONNX
+   Runtime) once on all of them; its outputs are cached in ``OUT/work`` under a key made of
+   the teacher's sha256 and the frames' content;
+3. train each student of the ladder (width x input scale 1/k) on the teacher's outputs with
+   sensor-variability augmentation (:mod:`.training`, the same loop as the reference recipe);
+   half of the labelled frames (when there are >= 10) are mixed in with their labels, the
+   other half are kept for evaluation. Each finished student is saved in ``OUT/work``
+   (checkpoint + record): Ctrl-C keeps them and a rerun resumes with the next student;
+4. export each student, quantize it to int8 (static, calibrated on the same unlabelled
+   frames it was distilled on), measure its p99 on this host through the runtime's model
+   (:class:`OnnxForceModel`, batch 2, one thread), and its error against the teacher on
+   held-out unlabelled frames and against the held-out labels;
+5. write the most accurate student (vs the teacher) whose p99 fits the budget to ``OUT/bundle``;
+   its manifest records the teacher, both errors, the latency and the host.
+
+Deterministic for a seed on a given machine; CPU only.
+"""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import json
+import os
+import platform
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import cv2
+import numpy as np
+from tactile_force.edge.bundle import Bundle, load_bundle, write_bundle
+from tactile_force.edge.dataset import AuthorsDataset
+from tactile_force.edge.errors import DatasetError, TactileForceError
+from tactile_force.edge.frames import FRAME_SHAPE
+from tactile_force.edge.manifest import ErrorFigures, ErrorReport
+from tactile_force.edge.metrics import error_stats
+
+from .calibration import CalibrationData
+from .checkpoint import model_from_checkpoint, save_checkpoint
+from .onnx_export import ExportOptions, export_bundle, ort_session, run_ort
+from .preprocess import ForceNet
+from .quantize import QuantizeOptions, quantize_bundle
+from .training import Augment, Frames, TrainOptions, predict, preprocess, train_network
+from .zoo import ModelSpec
+
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp")
+VIDEO_SUFFIXES = (".mp4", ".avi", ".mkv", ".mov", ".webm")
+
+
+class CompressError(TactileForceError, ValueError):
+    """Bad input to compress (frames, teacher, options); nothing was written."""
+
+
+@dataclass(frozen=True)
+class Rung:
+    """One student of the ladder: RGBmod at width multiplier ``width`` and input scale 1/``k``."""
+
+    width: float
+    k: int
+
+    @property
+    def name(self) -> str:
+        return f"rgbmod-w{self.width:g}-s{self.k}"
+
+    @property
+    def spec(self) -> ModelSpec:
+        return ModelSpec("rgbmod", self.width, 1.0 / self.k)
+
+
+#: The default ladder, cheapest first (0.005 to 0.06 GMAC a frame).
+DEFAULT_LADDER: tuple[Rung, ...] = (Rung(0.125, 8), Rung(0.25, 4), Rung(0.5, 4), Rung(0.25, 2))
+
+
+def parse_ladder(text: str) -> tuple[Rung, ...]:
+    """'0.25x4,0.5x4' -> rungs (width x k)."""
+    rungs = []
+    for part in (p.strip() for p in text.split(",") if p.strip()):
+        try:
+            w, k = part.lower().split("x")
+            rungs.append(Rung(float(w), int(k)))
+        except ValueError:
+            raise CompressError(f"--ladder {part!r}: expected WIDTHxK, e.g. 0.25x4 (width 0.25, input 1/4)") from None
+    if not rungs:
+        raise CompressError("--ladder: no students given")
+    return tuple(rungs)
+
+
+@dataclass
+class CompressOptions:
+    """What to compress and how.
+
+    teacher: checkpoint (.pth / .pth.tar) or fp32 bundle folder (RGBmod). frames: unlabelled
+    inputs. labels: an authors'-layout folder of labelled frames. out: output folder.
+    budget_ms: p99 budget per batch-2 inference on this host. epochs, lr, batch: training.
+    max_frames: unlabelled frames used at most (evenly subsampled). val_share: held-out
+    share of the unlabelled frames. latency_runs: timed batch-2 calls per student.
+    on_student: called with each student's record when it is trained (tests use it).
+    """
+
+    teacher: str | os.PathLike
+    frames: list[str | os.PathLike]
+    out: str | os.PathLike
+    labels: str | os.PathLike | None = None
+    budget_ms: float = 1.0
+    seed: int = 0
+    ladder: tuple[Rung, ...] = DEFAULT_LADDER
+    epochs: int = 30
+    lr: float = 1e-3
+    batch: int = 64
+    augment: Augment | None = field(default_factory=Augment)
+    max_frames: int = 6000
+    val_share: float = 0.15
+    threads: int | None = None
+    latency_runs: int = 200
+    calibration_frames: int = 200
+    show_progress: bool = False
+    on_student: Callable[[dict], None] | None = None
+
+
+@dataclass
+class CompressResult:
+    """The written bundle, the chosen student's record and every student's record."""
+
+    bundle: Bundle | None
+    chosen: dict | None
+    students: list[dict]
+    summary_path: Path
+
+
+# ----------------------------------------------------------------------------- frames
+
+def _check(img: np.ndarray | None, where: str) -> np.ndarray:
+    if img is None:
+        raise CompressError(f"{where}: cannot read the image (unreadable or not an image)")
+    if img.ndim == 2:
+        img = cv2.cvtColor(img, cv2.COLOR_GRAY2BGR)
+    if img.shape != FRAME_SHAPE or img.dtype != np.uint8:
+        hint = " (it looks transposed: rotate it to portrait)" if img.shape[:2] == FRAME_SHAPE[1::-1] else ""
+        raise CompressError(f"{where}: frame is {img.shape} {img.dtype}; expected {FRAME_SHAPE} uint8 BGR "
+                            f"(DIGIT portrait, 320 rows x 240 columns){hint}")
+    return img
+
+
+def read_frames(paths: list[str | os.PathLike], limit: int | None = None) -> tuple[np.ndarray, str]:
+    """Unlabelled frames (N,320,240,3) uint8 BGR from folders, videos or authors'-layout datasets."""
+    frames: list[np.ndarray] = []
+    parts = []
+    for raw in paths:
+        p = Path(raw)
+        before = len(frames)
+        if p.is_dir() and (p / "images").is_dir():
+            try:
+                ds = AuthorsDataset(p)
+            except DatasetError as exc:
+                raise CompressError(f"--frames: {exc}") from None
+            frames += [_check(cv2.imread(str(ds.image_path(n))), str(ds.image_path(n))) for n in ds.ids]
+        elif p.is_dir():
+            files = sorted(f for f in p.iterdir() if f.suffix.lower() in IMAGE_SUFFIXES and f.is_file())
+            if not files:
+                raise CompressError(f"--frames {p}: no images ({', '.join(IMAGE_SUFFIXES)}) in this folder")
+            frames += [_check(cv2.imread(str(f)), str(f)) for f in files]
+        elif p.is_file() and p.suffix.lower() in VIDEO_SUFFIXES:
+            cap = cv2.VideoCapture(str(p))
+            try:
+                while True:
+                    ok, img = cap.read()
+                    if not ok:
+                        break
+                    frames.append(_check(img, f"{p} frame {len(frames) - before}"))
+            finally:
+                cap.release()
+            if len(frames) == before:
+                raise CompressError(f"--frames {p}: no frames could be decoded from this video")
+        elif not p.exists():
+            raise CompressError(f"--frames {p}: not found")
+        else:
+            raise CompressError(f"--frames {p}: expected a folder of images, an authors'-layout dataset or a video "
+                                f"({', '.join(VIDEO_SUFFIXES)})")
+        parts.append(f"{p} ({len(frames) - before})")
+    arr = np.stack(frames) if frames else np.empty((0, *FRAME_SHAPE), np.uint8)
+    if limit is not None and len(arr) > limit:
+        arr = arr[np.linspace(0, len(arr) - 1, limit).round().astype(int)]
+    return arr, ", ".join(parts)
+
+
+def read_labels(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray]:
+    """Labelled frames and forces (N) from an authors'-layout folder."""
+    try:
+        ds = AuthorsDataset(path)
+        samples = [ds.load(n) for n in ds.ids]
+    except DatasetError as exc:
+        raise CompressError(f"--labels: {exc}") from None
+    frames = np.stack([_check(s.frame, str(ds.image_path(s.id))) for s in samples])
+    return frames, np.array([s.force_n for s in samples], np.float64)
+
+
+# ----------------------------------------------------------------------------- teacher
+
+@dataclass
+class Teacher:
+    """A teacher model: kind ('checkpoint' | 'bundle'), its file's sha256, a predict function."""
+
+    source: str
+    kind: str
+    sha256: str
+    description: str
+    predict: Callable[[np.ndarray], np.ndarray]
+
+
+def load_teacher(path: str | os.PathLike) -> Teacher:
+    """A checkpoint (authors' or ours, RGBmod) or an fp32 RGBmod bundle, as a batch predictor."""
+    p = Path(path)
+    if p.is_dir() or p.suffix in (".onnx", ".json"):
+        b = load_bundle(p)
+        if b.manifest.variant.value != "rgbmod":
+            raise CompressError(f"teacher {p}: a {b.manifest.variant.value} bundle; compress distils RGBmod "
+                                "teachers (students read RGB frames only)")
+        session = ort_session(b.onnx_path.read_bytes(), threads=max(1, os.cpu_count() or 1))
+
+        def run_bundle(frames: np.ndarray) -> np.ndarray:
+            data = CalibrationData({b.manifest.inputs[0].name: frames}, None, "frames", [str(i) for i in range(len(frames))])
+            return run_ort(session, data, batch_size=16)
+
+        return Teacher(str(p), "bundle", b.manifest.sha256, f"bundle {b.name} ({b.manifest.precision.value})",
+                       run_bundle)
+    if not p.is_file():
+        raise CompressError(f"teacher {p}: not found (expected a .pth checkpoint or a bundle folder)")
+    model, spec, _ = model_from_checkpoint(p, None)
+    if spec.variant != "rgbmod":
+        raise CompressError(f"teacher {p}: a {spec.variant} checkpoint; compress distils RGBmod teachers")
+    net = ForceNet(model, spec).eval()
+    sha = hashlib.sha256(p.read_bytes()).hexdigest()
+
+    def run_checkpoint(frames: np.ndarray) -> np.ndarray:
+        return predict(model, preprocess(net, {"rgb": frames}, chunk=64), batch=64).astype(np.float64)
+
+    return Teacher(str(p), "checkpoint", sha, f"checkpoint {p.name} (rgbmod w{spec.width:g} "
+                   f"input 1/{round(1 / spec.input_scale)})", run_checkpoint)
+
+
+def frames_digest(*arrays: np.ndarray) -> str:
+    """sha256 of the frames' bytes (the teacher-output cache key)."""
+    h = hashlib.sha256()
+    for a in arrays:
+        h.update(str(a.shape).encode())
+        h.update(np.ascontiguousarray(a).data)
+    return h.hexdigest()
+
+
+def teacher_outputs(teacher: Teacher, frames: np.ndarray, work: Path, key: str, show: bool) -> np.ndarray:
+    """Teacher forces (N,) on ``frames``, computed once and cached in ``work`` under ``key``."""
+    cache = work / f"teacher-{key[:24]}.npy"
+    if cache.is_file():
+        out = np.load(cache)
+        if out.shape == (len(frames),):
+            return out
+    chunk = 64
+    parts = []
+    from tqdm import tqdm
+
+    for i in tqdm(range(0, len(frames), chunk), desc="teacher", unit="batch", disable=not show, leave=False):
+        parts.append(teacher.predict(frames[i:i + chunk]))
+    out = np.concatenate(parts) if parts else np.empty(0)
+    if not np.all(np.isfinite(out)):
+        raise CompressError(f"teacher {teacher.source}: gives non-finite forces on some frames")
+    tmp = cache.with_name(cache.name + ".tmp.npy")
+    np.save(tmp, out)
+    os.replace(tmp, cache)
+    return out
+
+
+# ----------------------------------------------------------------------------- the ladder
+
+def host_description() -> str:
+    """CPU model, logical cores and OS of this host (recorded with latency figures)."""
+    cpu = platform.processor() or platform.machine()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return f"{cpu}, {os.cpu_count()} logical cores, {platform.system()} {platform.release()}"
+
+
+def _figures(pred: np.ndarray, ref: np.ndarray) -> dict:
+    s = error_stats(pred, ref)
+    return {"n": s.n, "re_mean": s.re_mean, "re_std": s.re_std, "mae_mean": s.mae_mean, "mae_std": s.mae_std,
+            "n_excluded_re": s.n_excluded_re}
+
+
+def _write_json(path: Path, obj: object) -> None:
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(json.dumps(obj, indent=2, default=float))
+    os.replace(tmp, path)
+
+
+def compress_model(o: CompressOptions) -> CompressResult:
+    """Run the whole compression (see the module docstring); resumes from ``o.out/work``."""
+    if not o.ladder:
+        raise CompressError("ladder: no students given")
+    if o.budget_ms <= 0:
+        raise CompressError(f"--budget-ms {o.budget_ms}: expected a positive number of milliseconds")
+    if not 0 < o.val_share < 0.5:
+        raise CompressError(f"val_share {o.val_share}: expected 0 < share < 0.5")
+    for r in o.ladder:
+        if not (0 < r.width <= 4) or r.k < 1 or FRAME_SHAPE[0] % r.k or FRAME_SHAPE[1] % r.k:
+            raise CompressError(f"ladder {r.width:g}x{r.k}: expected 0 < width <= 4 and k dividing 320 and 240")
+    out = Path(o.out)
+    work = out / "work"
+    show = o.show_progress
+    teacher = load_teacher(o.teacher)
+    frames, frames_desc = read_frames(list(o.frames), o.max_frames)
+    if len(frames) < 20:
+        raise CompressError(f"--frames: only {len(frames)} frame(s); at least 20 are needed (a few thousand covering "
+                            "light to firm presses is better)")
+    lab_frames, lab_forces = (read_labels(o.labels) if o.labels is not None
+                              else (np.empty((0, *FRAME_SHAPE), np.uint8), np.empty(0)))
+    work.mkdir(parents=True, exist_ok=True)
+    key = hashlib.sha256((teacher.sha256 + frames_digest(frames)).encode()).hexdigest()
+    t_frames = teacher_outputs(teacher, frames, work, key, show)
+
+    rng = np.random.default_rng(o.seed)
+    order = rng.permutation(len(frames))
+    n_val = max(2, round(o.val_share * len(frames)))
+    val_idx, tr_idx = np.sort(order[:n_val]), np.sort(order[n_val:])
+    lab_order = rng.permutation(len(lab_forces))
+    if len(lab_forces) >= 10:
+        lab_tr, lab_ev = np.sort(lab_order[: len(lab_order) // 2]), np.sort(lab_order[len(lab_order) // 2:])
+    else:
+        lab_tr, lab_ev = np.empty(0, int), np.sort(lab_order)
+    train = Frames({"rgb": np.concatenate([frames[tr_idx], lab_frames[lab_tr]])},
+                   np.concatenate([t_frames[tr_idx], lab_forces[lab_tr]]).astype(np.float32))
+    val = Frames({"rgb": frames[val_idx]}, t_frames[val_idx])
+    topt = TrainOptions(epochs=o.epochs, lr=o.lr, batch=o.batch, seed=o.seed, threads=o.threads, augment=o.augment)
+    lab_key = frames_digest(lab_frames, lab_forces) if len(lab_forces) else ""
+    run_key = hashlib.sha256(json.dumps([key, lab_key, o.seed, o.val_share, asdict(topt)], default=str).encode()).hexdigest()[:16]
+    calib = CalibrationData({"rgb": train.inputs["rgb"][
+        np.linspace(0, len(train) - 1, min(o.calibration_frames, len(train))).round().astype(int)]},
+        None, f"{len(train)} distillation frames ({frames_desc})", [])
+    calib.ids = [str(i) for i in range(len(calib.inputs["rgb"]))]
+    val_data = CalibrationData({"rgb": val.inputs["rgb"]}, None, "held-out unlabelled frames",
+                               [str(i) for i in range(len(val))])
+    lab_ev_data = (CalibrationData({"rgb": lab_frames[lab_ev]}, lab_forces[lab_ev], f"{o.labels} (held-out half)",
+                                   [str(i) for i in lab_ev]) if len(lab_ev) else None)
+
+    from tqdm import tqdm
+
+    records: list[dict] = []
+    for rung in tqdm(o.ladder, desc="students", unit="student", disable=not show):
+        sdir = work / f"{rung.name}-{run_key}"
+        rec_path = sdir / "record.json"
+        if rec_path.is_file():
+            rec = json.loads(rec_path.read_text())
+            rec["resumed"] = True
+        else:
+            sdir.mkdir(parents=True, exist_ok=True)
+            res = train_network(rung.spec, train, val, topt, show_progress=show, desc=rung.name)
+            save_checkpoint(sdir / "model.pth", res.model, rung.spec,
+                            extra={"trained_on": f"distilled from {teacher.description} on {frames_desc}"})
+            rec = {"name": rung.name, "width": rung.width, "k": rung.k, "best_epoch": res.best_epoch,
+                   "train_seconds": round(res.seconds, 1), "epochs": o.epochs, "resumed": False}
+            _write_json(rec_path, rec)
+        if "p99_ms" not in rec:
+            rec.update(_finish_student(sdir, rung, teacher, calib, val_data, val.targets, lab_ev_data, o))
+            _write_json(rec_path, {k: v for k, v in rec.items() if k != "resumed"})
+        records.append(rec)
+        if o.on_student is not None:
+            o.on_student(rec)
+
+    fits = [r for r in records if r["p99_ms"] <= o.budget_ms]
+    chosen = min(fits, key=lambda r: r["vs_teacher"]["re_mean"]) if fits else None
+    bundle = None
+    if chosen is not None:
+        bundle = _write_final(out / "bundle", chosen, teacher, frames_desc, len(frames), o, records)
+    summary = out / "compress.json"
+    _write_json(summary, {"teacher": {"source": teacher.source, "kind": teacher.kind, "sha256": teacher.sha256},
+                          "frames": frames_desc, "labels": str(o.labels) if o.labels else None,
+                          "budget_ms": o.budget_ms, "seed": o.seed, "host": host_description(),
+                          "chosen": chosen["name"] if chosen else None, "students": records})
+    return CompressResult(bundle, chosen, records, summary)
+
+
+def _finish_student(sdir: Path, rung: Rung, teacher: Teacher, calib: CalibrationData, val_data: CalibrationData,
+                    val_teacher: np.ndarray, lab_ev: CalibrationData | None, o: CompressOptions) -> dict:
+    """Export, int8-quantize, evaluate and time one trained student."""
+    from tactile_force.edge.inference import OnnxForceModel, measure_p99_ms
+
+    fp32 = export_bundle(sdir / "model.pth", sdir / "fp32", ExportOptions(
+        parity_data=val_data.subset(16), name=f"{rung.name}-fp32", overwrite=True,
+        trained_on=f"distilled from {teacher.description}"))
+    int8 = quantize_bundle(fp32, sdir / "int8", QuantizeOptions(mode="int8-static", name=f"{rung.name}-int8",
+                                                                overwrite=True), calibration=calib, eval_data=val_data)
+    sess = ort_session(int8.onnx_path.read_bytes(), threads=max(1, os.cpu_count() or 1))
+    rec: dict = {"vs_teacher": _figures(run_ort(sess, val_data), val_teacher)}
+    if lab_ev is not None and lab_ev.forces is not None:
+        rec["vs_labels"] = _figures(run_ort(sess, lab_ev), lab_ev.forces)
+        rec["teacher_vs_labels"] = _figures(teacher.predict(lab_ev.inputs["rgb"]), lab_ev.forces)
+    model = OnnxForceModel(int8, threads=1)
+    rec["p99_ms"] = measure_p99_ms(model, runs=o.latency_runs)
+    rec["gmacs"] = int8.manifest.architecture.gmacs
+    rec["bundle"] = str(sdir / "int8")
+    return rec
+
+
+def _write_final(dest: Path, chosen: dict, teacher: Teacher, frames_desc: str, n_frames: int, o: CompressOptions,
+                 records: list[dict]) -> Bundle:
+    src = load_bundle(chosen["bundle"])
+    m = copy.deepcopy(src.manifest)
+    m.name = f"{chosen['name']}-int8-distilled"
+    vt = chosen["vs_teacher"]
+    vl = chosen.get("vs_labels")
+    m.error = ErrorReport(
+        data=(f"{o.labels} (held-out half of the labelled frames)" if vl else
+              f"held-out unlabelled frames ({vt['n']}) vs the teacher"),
+        frames=vl["n"] if vl else vt["n"],
+        vs_truth=ErrorFigures(**vl) if vl else None,
+        vs_teacher=ErrorFigures(**vt))
+    m.provenance.trained_on = f"distilled from the teacher on {n_frames} unlabelled frames: {frames_desc}"
+    m.provenance.teacher = {"source": teacher.source, "kind": teacher.kind, "sha256": teacher.sha256,
+                            "description": teacher.description}
+    m.provenance.host = host_description()
+    m.provenance.extra = {"p99_ms_batch2": round(float(chosen["p99_ms"]), 4), "budget_ms": o.budget_ms,
+                          "seed": o.seed, "epochs": o.epochs, "student": chosen["name"],
+                          "ladder": ",".join(f"{r['name']}:{r['p99_ms']:.3f}ms" for r in records),
+                          "vs_teacher_re_mean": vt["re_mean"]}
+    m.provenance.note = (f"Distilled by 'tactile-force compress' ({time.strftime('%Y-%m-%d')}); "
+                         "student-vs-teacher error on held-out unlabelled frames in error.vs_teacher.")
+    return write_bundle(dest, src.onnx_path.read_bytes(), m, overwrite=True)
+
+
+__all__ = [
+    "DEFAULT_LADDER",
+    "CompressError",
+    "CompressOptions",
+    "CompressResult",
+    "Rung",
+    "compress_model",
+    "load_teacher",
+    "parse_ladder",
+    "read_frames",
+]

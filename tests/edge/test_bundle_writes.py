@@ -1,0 +1,115 @@
+"""Bundle writes survive kill -9 in every window; graphs that break the frame contract are refused."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import signal
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+from tactile_force.edge import BundleError, load_bundle
+from tactile_force.edge.bundle import stale_partials, write_bundle
+from tactile_force.edge.inference import OnnxForceModel
+from tactile_force.edge.scene import default_bundle_path
+
+WRITER = textwrap.dedent("""
+    import os, sys
+    from tactile_force.edge import bundle as B
+    dest, phase, exchange, tag = sys.argv[1], sys.argv[2], sys.argv[3] == "1", sys.argv[4]
+    if not exchange:
+        B._exchange = lambda a, b: False          # the two-rename path (filesystems without RENAME_EXCHANGE)
+    B._phase = lambda name: os.kill(os.getpid(), 9) if name == phase else None
+    src = B.load_bundle(sys.argv[5])
+    src.manifest.name = tag
+    B.write_bundle(dest, src.onnx_path.read_bytes(), src.manifest, overwrite=True)
+""")
+
+
+@pytest.fixture
+def old_bundle(tmp_path):
+    dest = tmp_path / "bundle"
+    b = load_bundle(default_bundle_path())
+    b.manifest.name = "old"
+    write_bundle(dest, b.onnx_path.read_bytes(), b.manifest)
+    return dest
+
+
+@pytest.mark.parametrize("exchange, phase", [
+    (True, "files-written"), (True, "exchanged"), (False, "files-written"), (False, "old-moved"), (True, "none"),
+])
+def test_kill_9_at_every_write_phase_leaves_a_complete_bundle(old_bundle, exchange, phase):
+    run = subprocess.run([sys.executable, "-c", WRITER, str(old_bundle), phase, "1" if exchange else "0", "new",
+                          str(default_bundle_path())], capture_output=True, text=True)
+    killed = run.returncode == -signal.SIGKILL
+    assert killed == (phase != "none"), run.stderr
+    b = load_bundle(old_bundle)  # recovers an interrupted two-rename swap if needed
+    expected = {"files-written": "old", "old-moved": "old", "exchanged": "new", "none": "new"}[phase]
+    assert b.manifest.name == expected
+    # the killed writer's leftovers are recognised, and the next write cleans them
+    leftovers = stale_partials(old_bundle)
+    assert all(p.name.endswith(".partial") for p in leftovers)
+    write_bundle(old_bundle, b.onnx_path.read_bytes(), b.manifest, overwrite=True)
+    assert stale_partials(old_bundle) == []
+    assert sorted(p.name for p in old_bundle.parent.iterdir()) == ["bundle"]
+
+
+def test_a_live_writer_partial_is_not_stale(tmp_path):
+    part = tmp_path / ".bundle.abc.partial"
+    part.mkdir()
+    (part / ".writer-pid").write_text(str(__import__("os").getpid()))
+    assert stale_partials(tmp_path / "bundle") == []
+    (part / ".writer-pid").write_text("999999999")
+    assert stale_partials(tmp_path / "bundle") == [part]
+
+
+def _graph(shape, n_inputs=1, elem="uint8"):
+    onnx = pytest.importorskip("onnx", reason="building test graphs needs the 'onnx' package (dev extra)")
+    from onnx import TensorProto, helper
+
+    et = {"uint8": TensorProto.UINT8, "float": TensorProto.FLOAT}[elem]
+    inputs = [helper.make_tensor_value_info("rgb", et, shape)]
+    nodes = [helper.make_node("Cast", ["rgb"], ["x"], to=TensorProto.FLOAT),
+             helper.make_node("ReduceMean", ["x"], ["force_n"], axes=[1, 2, 3], keepdims=0)]
+    if n_inputs == 2:
+        inputs.append(helper.make_tensor_value_info("extra", TensorProto.UINT8, ["N", 4]))
+    g = helper.make_graph(nodes, "g", inputs, [helper.make_tensor_value_info("force_n", TensorProto.FLOAT, ["N"])])
+    m = helper.make_model(g, opset_imports=[helper.make_opsetid("", 17)])
+    m.ir_version = 8
+    return m.SerializeToString()
+
+
+@pytest.mark.parametrize("shape, n_inputs, elem, message", [
+    (["N", 240, 320, 3], 1, "uint8", "looks transposed"),
+    ([1, 320, 240, 3], 1, "uint8", "fixed batch of 1"),
+    (["N", 320, 240, 1], 1, "uint8", r"contract is \(batch, 320, 240, 3\)"),
+    (["N", 320, 240, 3], 2, "uint8", r"input\(s\) \['extra'\] that the manifest does not declare"),
+    (["N", 320, 240, 3], 1, "float", "the bundle contract is uint8"),
+])
+def test_graphs_that_break_the_frame_contract_are_refused_at_load(tmp_path, shape, n_inputs, elem, message):
+    b = load_bundle(default_bundle_path())
+    b.manifest.quantization = None
+    b.manifest.precision = "fp32"
+    b.manifest.__post_init__()
+    dest = write_bundle(tmp_path / "b", _graph(shape, n_inputs, elem), b.manifest).path
+    with pytest.raises(BundleError, match=message):
+        OnnxForceModel(dest)
+    run = subprocess.run([sys.executable, "-m", "tactile_force.edge.cli", "bundle", "verify", str(dest)],
+                         capture_output=True, text=True)
+    assert run.returncode == 1 and "Traceback" not in run.stderr and "FAILED" in run.stderr
+
+
+def test_hash_mismatch_and_missing_files(tmp_path):
+    dest = tmp_path / "b"
+    shutil.copytree(default_bundle_path(), dest)
+    raw = json.loads((dest / "model.json").read_text())
+    raw["sha256"] = "0" * 64
+    (dest / "model.json").write_text(json.dumps(raw))
+    with pytest.raises(BundleError, match="does not match the manifest"):
+        load_bundle(dest)
+    (dest / "model.onnx").unlink()
+    with pytest.raises(BundleError, match="ONNX file missing"):
+        load_bundle(dest)
