@@ -4,6 +4,8 @@
     python -m benchmarks latency                      # latency matrix -> out/benchmarks/latency.md
     python -m benchmarks all --out docs/benchmarks    # everything, into the docs (only when asked)
     python -m benchmarks all --quick                  # smoke run (never into the docs)
+    python -m benchmarks robustness --out docs        # bad inputs and faults, counted -> docs/robustness.md
+    python -m benchmarks trust --out docs/benchmarks  # frames that cannot be judged, counted -> trust.md
 
 Results go to ``--out DIR`` (default out/benchmarks, git-ignored); docs/benchmarks only
 when it is named. Every page states the machine, its load while measuring, and the command.
@@ -70,7 +72,13 @@ def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     ap = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__)
-    ap.add_argument("what", nargs="?", choices=TASKS, help="which benchmark to run (default: none with --check)")
+    ap.add_argument("what", nargs="?", choices=(*TASKS, "robustness", "trust"),
+                    help="which benchmark to run (default: none with --check); 'robustness' and 'trust' are not "
+                         "part of 'all'")
+    ap.add_argument("--write-default-stats", action="store_true",
+                    help="trust: also store the default bundle's data_stats in edge/models/default/model.json")
+    ap.add_argument("--examples", type=int, default=100,
+                    help="robustness: generated cases per generated category (default 100; --quick: 15)")
     ap.add_argument("--check", action="store_true", help="run the under-1 ms check; exit 1 when it fails")
     ap.add_argument("--budget-ms", type=float, default=1.0, help="--check budget for the end-to-end total p99 (ms)")
     ap.add_argument("--repeats", type=int, default=3,
@@ -88,8 +96,17 @@ def main(argv: list[str] | None = None) -> int:
               f"than {args.out}", file=sys.stderr)
         return 2
     if args.repeats < 1 or args.pause_s < 0:
-        print(f"--repeats {args.repeats} / --pause-s {args.pause_s}: expected >= 1 attempts and >= 0 s", file=sys.stderr)
+        print(f"--repeats {args.repeats} / --pause-s {args.pause_s}: expected >= 1 attempts and >= 0 s",
+              file=sys.stderr)
         return 2
+    if args.what == "robustness":
+        from .robustness import run as run_robustness
+
+        return run_robustness(args, argv)
+    if args.what == "trust":
+        from .trust import run as run_trust
+
+        return run_trust(args, argv)
     todo = TASKS[:-1] if args.what == "all" else ([args.what] if args.what else [])
     for t in todo:
         if t == "latency":

@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import enum
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 from .bundles import ModelConfig, rgbmod_candidates, trained_int8
 from .latency import COMPACT, LatencyCase, LatencyResult, measure
@@ -125,13 +125,14 @@ def _best(measure_fn: Measure, frames: int, budget_ms: float) -> tuple[str, Late
 
 def run_check(measure_fn: Measure | None = None, frames: int = 1000, budget_ms: float = BUDGET_MS,
               torch_frames: int = 30, with_torch: bool = True, repeats: int = 3, pause_s: float = 30.0,
-              window: Window = CpuWindow, sleep: Callable[[float], None] = time.sleep) -> CheckResult:
+              window: Window | None = None, sleep: Callable[[float], None] = time.sleep) -> CheckResult:
     """Measure the best RGBmod (and D, RGBmod+D, torch eager beside it) and judge the budget.
 
     measure_fn: how a case is timed (default :func:`benchmarks.latency.measure`; tests
     inject fakes); repeats: attempts at most, a new one only after an attempt over budget on
     a busy machine, ``pause_s`` seconds later; window: machine watcher (tests inject one)."""
     measure_fn = measure_fn or measure
+    window = window or CpuWindow
     attempts: list[Attempt] = []
     kept: tuple[str, LatencyResult, list] | None = None
     for k in range(max(1, repeats)):

@@ -57,7 +57,8 @@ def _latency(path: Path, runs: int) -> tuple[float, float]:
     return float(np.percentile(t, 50)), float(np.percentile(t, 99))
 
 
-def study(models: list[tuple[str, float, int]], runs: int = 100) -> list[list]:
+def study(models: list[tuple[str, float, int, Path | None]], runs: int = 100) -> list[list]:
+    """models: (label, width, k, trained checkpoint or None for random weights, seed 0)."""
     import torch
 
     from tactile_force.export import (CalibrationData, ExportOptions, ForceNet, ModelSpec, QuantizeOptions,
@@ -69,14 +70,14 @@ def study(models: list[tuple[str, float, int]], runs: int = 100) -> list[list]:
                             [str(i) for i in range(64)])
     evald = CalibrationData({"rgb": real}, None, f"{len(real)} real DIGIT frames", [str(i) for i in range(len(real))])
     rows = []
-    for name, width, k in models:
-        root = CACHE / "int8_head" / name
+    for name, width, k, ckpt in models:
+        root = CACHE / "int8_head" / name.split(" ")[0]
         torch.manual_seed(0)
         spec = ModelSpec("rgbmod", width, 1.0 / k)
         fp32 = root / "fp32"
         if not (fp32 / "model.json").is_file():
-            export_bundle(ForceNet(build_model("rgbmod", width).eval(), spec), fp32,
-                          ExportOptions(name=f"{name}-fp32", overwrite=True))
+            source = ckpt if ckpt is not None else ForceNet(build_model("rgbmod", width).eval(), spec)
+            export_bundle(source, fp32, ExportOptions(name=f"{name}-fp32", overwrite=True))
         ref = run_ort(ort_session(fp32.joinpath("model.onnx").read_bytes(), 2), evald)
         for head in (False, True):
             dest = root / ("int8-float-head" if head else "int8-quantized-head")
@@ -99,7 +100,11 @@ def main(argv: list[str] | None = None) -> int:
     from .stats import markdown_table
 
     argv = sys.argv[1:] if argv is None else argv
-    models = [("rgbmod-w1-s1 (full res, random weights)", 1.0, 1), ("rgbmod-w0.25-s4 (random weights)", 0.25, 4)]
+    models: list[tuple[str, float, int, Path | None]] = [("rgbmod-w1-s1 (full res, random weights)", 1.0, 1, None)]
+    for trained in sorted((CACHE / "distill").glob("*/model.pth")):  # models trained by benchmarks.distill_study
+        if "labelled-" in trained.parent.name or "teacher-" in trained.parent.name:
+            w, s = trained.parent.name.split("-w")[1].split("-s")
+            models.append((f"{trained.parent.name} (trained)", float(w), int(s.split("-")[0]), trained))
     rows = study(models)
     note = ("Random-weight RGBmod graphs (seed 0), int8-static minmax per-channel, calibrated on 64 virtual DIGIT "
             "frames; errors against the same graph in fp32 on 53 real DIGIT frames (11 AUROVA + 42 FOTS ball "

@@ -15,13 +15,12 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
 
 import cv2
 import numpy as np
-
 from tactile_force.edge.frames import FrameSource, TimedFrame
 
 from .bundles import ModelConfig, latency_bundle
@@ -111,7 +110,6 @@ class TorchEager:
 
     def __init__(self, cfg: ModelConfig, threads: int, seed: int = 0) -> None:
         import torch
-
         from tactile_force.export import ForceNet, ModelSpec, build_model
 
         torch.set_num_threads(threads)
@@ -195,7 +193,6 @@ def bare_onnxruntime(case: LatencyCase, pool: FramePool, clock: Clock = time.per
     """The case's graph in a bare ``InferenceSession.run`` (the runtime's session options:
     ``threads`` intra-op threads, sequential, all graph optimisations) on the same frames, ms."""
     import onnxruntime as ort
-
     from tactile_force.edge import load_bundle
 
     bundle = load_bundle(case.bundle or latency_bundle(case.config, case.precision))
@@ -331,7 +328,8 @@ def result_row(r: LatencyResult) -> list[object]:
     c = r.case
     s = r.stages
     eng = ENGINE_LABEL[c.engine]
-    cells: list[object] = [c.label, f"{eng} {c.precision}", c.threads, s["total"].n, r.gmacs if r.gmacs == r.gmacs else None]
+    gmacs = r.gmacs if r.gmacs == r.gmacs else None
+    cells: list[object] = [c.label, f"{eng} {c.precision}", c.threads, s["total"].n, gmacs]
     for k in ("gate", "depth", "inference", "total"):
         p = s[k]
         cells.append(f"{p.p50:.3f} / {p.p90:.3f} / {p.p99:.3f}" if p.n else "-")

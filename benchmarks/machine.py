@@ -81,7 +81,7 @@ def background_load() -> str:
         train = "reference training RUNNING (timings pessimistic)" if pids else "no reference training running"
     except (OSError, subprocess.SubprocessError, ValueError):
         train = "training status unknown"
-    return f"{la}; {train}"
+    return f"{la}; CPU clock {cpu_mhz():.0f} MHz; {train}"
 
 
 def describe_machine() -> Machine:

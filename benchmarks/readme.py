@@ -5,10 +5,13 @@ from __future__ import annotations
 from pathlib import Path
 
 PAGES = (
-    ("check.md", "The under-1 ms check: gate + inference p50 / p90 / p99 of the best RGBmod, D and RGBmod+D beside it, "
-                 "ratio to PyTorch eager"),
-    ("latency.md", "Latency per stage (decode, gate, depth, inference, total), every variant, precision, size "
-                   "and thread count, GMACs, the paper's way (PyTorch eager) beside ours, the gate's cost"),
+    ("check.md", "The under-1 ms check through ForceRuntime: total p50 / p90 / p99 of the best RGBmod, the "
+                 "runtime's overhead over a bare onnxruntime session, D and RGBmod+D beside it, ratio to PyTorch "
+                 "eager, the machine's load per attempt"),
+    ("latency.md", "Issue 12's goals (before / after); latency per stage through ForceRuntime (gate, depth, "
+                   "inference, total, glue, bare onnxruntime, overhead) for every variant, precision, size and "
+                   "thread count; PyTorch eager, onnxruntime and OpenVINO side by side; two sensors; the demo's "
+                   "late readings; masked depth evaluation; the gate's cost"),
     ("error_vs_runtime.md", "Error (RE / MAE, per 1 N bin; synthetic held-out indenters and real AUROVA frames) "
                             "against p50 / p99 of every trained bundle"),
     ("error_vs_runtime.png", "Pareto plot: RE against p99 latency"),
@@ -21,8 +24,11 @@ PAGES = (
 def write_readme(out: Path) -> Path:
     lines = ["# Benchmarks", "",
              "Every page states the machine and the command that made it. Regenerate everything with",
-             "", "    python -m benchmarks all          # ~15 min on a 2-core CPU; --quick for a smoke run",
-             "    python -m benchmarks --check      # the under-1 ms check (exit 1 when it fails)", "",
+             "", "    python -m benchmarks all --check --out docs/benchmarks   # everything, into these docs",
+             "    python -m benchmarks latency --check --out docs/benchmarks   # only latency.md and check.md",
+             "    python -m benchmarks all --quick   # smoke run into out/benchmarks (never into the docs)", "",
+             "Without `--out` results go to out/benchmarks (git-ignored). The check records the machine's load and",
+             "repeats when it is busy: 'machine busy' is reported apart from 'over budget'.", ""
              "Trained models come from `python -m benchmarks.reference` (synthetic frames, CPU);",
              "configs it has not trained yet are listed as 'not trained'.", ""]
     for name, what in PAGES:

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import contextlib
 import enum
+import functools
 import io
 import json
 import logging
@@ -33,6 +34,7 @@ import subprocess
 import sys
 import tempfile
 import threading
+import traceback
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -46,6 +48,16 @@ REPO = Path(__file__).resolve().parents[1]
 KILL_WORKER = REPO / "tests" / "robustness" / "record_kill_worker.py"
 DOCS = REPO / "docs" / "robustness.md"
 MAX_FORCE_N = 200.0
+
+
+def use_package_root(root: str | os.PathLike) -> None:
+    """Import ``tactile_force`` from ``root`` (a folder holding tactile_force/edge, /export,
+    /firmware_bridge) instead of the installed package: used to run this catalogue against an
+    older commit (benchmarks/robustness_baseline.py). Call before tactile_force is imported."""
+    sys.meta_path[:] = [f for f in sys.meta_path if "editable" not in repr(f).lower()]
+    sys.path[:] = [p for p in sys.path if "__editable__" not in p]
+    sys.path.insert(0, str(root))
+    os.environ["TF_PACKAGE_ROOT"] = str(root)  # the kill -9 worker subprocess follows
 
 
 class Outcome(str, enum.Enum):
@@ -135,6 +147,9 @@ def run_cli(argv: list[str]) -> tuple[int, str, str]:
             rc = int(main(list(argv)) or 0)
         except SystemExit as exc:
             rc = exc.code if isinstance(exc.code, int) else 2
+        except Exception:  # what the console script would print: a traceback, exit 1
+            traceback.print_exc(file=sys.stderr)
+            rc = 1
     return rc, out.getvalue(), err.getvalue()
 
 
@@ -232,8 +247,7 @@ class _Count(logging.Handler):
 def probe_label(root: Path, data: bytes, *, calib: bool = True) -> Verdict:
     """One label file through every reader: read_force_file, the dataset reader, the replay
     source (must warn once and yield truth None, never die) and quantize's --calib reader."""
-    from tactile_force.edge.dataset import AuthorsDataset
-    from tactile_force.edge.labels import read_force_file
+    from tactile_force.edge.dataset import AuthorsDataset, read_force_file
     from tactile_force.edge.sources import ReplayFolderSource
 
     want = expected_label(data)
@@ -415,7 +429,10 @@ def probe_exposure(frame: np.ndarray) -> Verdict:
 
 # =============================================================================== manifests
 def default_bundle_dir() -> Path:
-    return REPO / "edge" / "models" / "default"
+    """The default bundle of the installed package (edge/models/default)."""
+    import tactile_force.edge
+
+    return Path(tactile_force.edge.__file__).resolve().parent / "models" / "default"
 
 
 def _paths(obj: Any, prefix: tuple = ()) -> Iterator[tuple]:
@@ -428,8 +445,18 @@ def _paths(obj: Any, prefix: tuple = ()) -> Iterator[tuple]:
             yield from _paths(v, (*prefix, i))
 
 
-_BASE_MANIFEST: dict = json.loads((default_bundle_dir() / "model.json").read_text())
-_MANIFEST_PATHS = [p for p in _paths(_BASE_MANIFEST) if p]
+@functools.lru_cache(maxsize=1)
+def _base_manifest_text() -> str:
+    return (default_bundle_dir() / "model.json").read_text()
+
+
+def base_manifest() -> dict:
+    """A fresh copy of the default bundle's manifest (read once)."""
+    return json.loads(_base_manifest_text())
+
+
+def manifest_paths() -> list[tuple]:
+    return [p for p in _paths(base_manifest()) if p]
 #: top-level fields a changed value of which must make loading fail (hash, graph contract, file)
 _MUST_MATCH = {"sha256", "variant", "onnx_file", "inputs", "output", "format_version"}
 
@@ -449,8 +476,8 @@ def manifest_mutations(draw) -> tuple[str, Any]:
     op = draw(st.sampled_from(["replace", "replace", "replace", "delete", "whole"]))
     if op == "whole":
         return "whole manifest replaced", draw(json_values)
-    m = json.loads(json.dumps(_BASE_MANIFEST))
-    path = draw(st.sampled_from(_MANIFEST_PATHS))
+    m = base_manifest()
+    path = draw(st.sampled_from(manifest_paths()))
     parent = m
     for k in path[:-1]:
         parent = parent[k]
@@ -476,14 +503,14 @@ def targeted_manifests() -> list[tuple[str, Any]]:
                         (("inputs", 0, "shape"), [1, 320, 240, 3]), (("inputs", 0, "dtype"), "float32"),
                         (("inputs", 0, "name"), "depth"), (("output", "name"), "force"),
                         (("sha256",), "0" * 64), (("format_version",), 99)):
-        m = json.loads(json.dumps(_BASE_MANIFEST))
+        m = base_manifest()
         parent = m
         for k in path[:-1]:
             parent = parent[k]
         parent[path[-1]] = value
         out.append((f"MUST-REFUSE {'.'.join(map(str, path))} = {json.dumps(value)}", m))
     for key in ("parity", "error", "architecture", "quantization", "provenance"):
-        m = json.loads(json.dumps(_BASE_MANIFEST))
+        m = base_manifest()
         if isinstance(m.get(key), dict) and m[key]:
             first = next(iter(m[key]))
             m[key] = {first: m[key][first]}
@@ -492,15 +519,20 @@ def targeted_manifests() -> list[tuple[str, Any]]:
 
 
 def probe_manifest(folder: Path, case: tuple[str, Any], *, cli: bool = False) -> Verdict:
-    """Write ``case``'s manifest beside the default bundle's graph and load it (and, with
-    ``cli``, run ``tactile-force bundle verify`` and ``bundle show`` on it)."""
+    """Write ``case``'s manifest beside the default bundle's graph and load it with load_bundle
+    (and, for a manifest that does not fit the graph, open it with OnnxForceModel as the
+    runtime does); with ``cli``, also run ``tactile-force bundle verify`` and ``bundle show``."""
     from tactile_force.edge import load_bundle
 
     what, manifest = case
     must_refuse = what.startswith("MUST-REFUSE")
     (folder / "model.json").write_text(json.dumps(manifest))
     try:
-        load_bundle(folder)
+        bundle = load_bundle(folder)
+        if must_refuse:  # the runtime's entry must refuse it when the reader did not
+            from tactile_force.edge.inference import OnnxForceModel
+
+            OnnxForceModel(bundle, warmup=0)
         v = accepted(True if must_refuse else None, what)
     except BaseException as exc:  # noqa: BLE001
         v = refusal(exc, True if must_refuse else None)
@@ -692,7 +724,6 @@ def expected_meta_ok(meta: Any) -> bool:
 
 def probe_checkpoint_meta(folder: Path, meta: Any) -> Verdict:
     import torch
-
     from tactile_force.export.checkpoint import load_checkpoint, resolve_spec
 
     ok = expected_meta_ok(meta)
@@ -723,8 +754,8 @@ def cli_cases(folder: Path) -> list[tuple[list[str], set[int], tuple[str, ...]]]
     return [
         (["synth", "--n", "0", "--out", str(folder / "s1")], {2}, ("--n",)),
         (["synth", "--out", str(afile), "--n", "5"], {2}, ("--out",)),
-        (["synth", "--out", str(folder / "s2"), "--edge-fraction", "2"], {2}, ("--edge-fraction",)),
-        (["synth", "--out", str(folder / "s3"), "--frames-per-grasp", "0"], {2}, ("--frames-per-grasp",)),
+        (["synth", "--out", str(folder / "s2"), "--n", "2", "--edge-fraction", "2"], {2}, ("--edge-fraction",)),
+        (["synth", "--out", str(folder / "s3"), "--n", "2", "--frames-per-grasp", "0"], {2}, ("--frames-per-grasp",)),
         (["quantize", bundle, "--out", str(folder / "q"), "--max-frames", "0"], {2}, ("--max-frames",)),
         (["quantize", bundle, "--out", str(folder / "q"), "--min-frames", "0"], {2}, ("--min-frames",)),
         (["quantize", bundle, "--out", str(folder / "q"), "--min-frames", "50", "--max-frames", "10"], {2},
@@ -791,11 +822,13 @@ def probe_kill(folder: Path, phase: str) -> Verdict:
     if len(samples) > complete + 1 or res.written != [complete]:
         return Verdict(Outcome.SILENT_WRONG, f"{phase}: {len(samples)} samples, resumed at {res.written}")
     if sorted(ds.meta) != [s.id for s in samples]:
-        return Verdict(Outcome.SILENT_WRONG, f"{phase}: meta ids {sorted(ds.meta)} vs samples {[s.id for s in samples]}")
-    removed = res.removed_unlabelled
-    return Verdict(Outcome.CLEAR if res.repairs[0].changed else Outcome.ACCEPTED,
-                   f"{phase}: {complete} complete samples kept; repaired: {res.repairs[0].describe()}; "
-                   f"unlabelled removed {removed}")
+        return Verdict(Outcome.SILENT_WRONG,
+                       f"{phase}: meta ids {sorted(ds.meta)} vs samples {[s.id for s in samples]}")
+    repairs = getattr(res, "repairs", None)
+    changed = bool(repairs[0].changed) if repairs else bool(res.removed_unlabelled)
+    return Verdict(Outcome.CLEAR if changed else Outcome.ACCEPTED,
+                   f"{phase}: {complete} complete samples kept"
+                   + (f"; repaired: {repairs[0].describe()}" if repairs else ""))
 
 
 def probe_truncation(folder: Path, cut: int) -> Verdict:
@@ -916,7 +949,8 @@ def probe_disk_full(folder: Path) -> tuple[Verdict, str]:
             verdicts.append(Verdict(Outcome.TRACEBACK, stderr[-300:]))
         m = re.search(r"wrote (\d+) sample", stdout)
         if rc == 0 or "disk full" not in stderr or not m:
-            verdicts.append(Verdict(Outcome.SILENT_WRONG, f"exit {rc}; stdout {stdout[-200:]!r}; stderr {stderr[-200:]!r}"))
+            verdicts.append(Verdict(Outcome.SILENT_WRONG,
+                                    f"exit {rc}; stdout {stdout[-200:]!r}; stderr {stderr[-200:]!r}"))
         written = int(m.group(1)) if m else -1
         try:
             n = len(list(AuthorsDataset(out)))
@@ -1110,3 +1144,160 @@ def table(tallies: list[Tally]) -> str:
 
 def failures(tallies: list[Tally]) -> list[str]:
     return [f"{t.category}: {b}" for t in tallies for b in t.bad]
+
+
+# =============================================================================== the page
+NOTES = f"""Every case goes through the public API or the CLI in-process, as a user would: generated
+cases come from the hypothesis strategies in `benchmarks/robustness.py` (the same ones
+`tests/robustness/` runs, derandomized here so the counts repeat), the fault cases are fixed
+lists. Columns: **accepted** valid input taken with the right result; **clear error** bad input
+refused with a `TactileForceError` (exit 1/2 on the CLI) whose message names the input;
+**valid refused** a false alarm; **traceback** any other exception type, a CLI traceback or a
+wrong exit code; **silent wrong** bad input accepted or a wrong value returned; **hang** no
+answer within 60 s (20 s for a vanished replay); **data lost** a complete sample gone after a
+fault. A case counts once, under the worst thing any reader did with it.
+
+Rules the counts are judged by (docs match code: `edge/labels.py`, `export/checkpoint.py`):
+* a force label is UTF-8 text whose first non-blank line starts with a plain decimal number,
+  finite, 0 <= F <= {MAX_FORCE_N:g} N (0 N = no contact; the bound is ten times the paper's
+  0-20 N range and 4.5 times the largest real grasp in the shared data, 44.5 N: a larger value
+  is a unit error such as grams written as newtons). The dataset reader and `quantize --calib`
+  refuse anything else with a `LabelError` naming the file; the replay source logs one warning
+  per bad label file and replays the frame with `truth_n = None` (`meta['label_error']`);
+  `record` skips scale readings outside the range ("force outside the label range").
+* `meta.jsonl`: one JSON object with an integer `"id" >= 0` per line, else an error naming the
+  file and the line (a cut-short last line says to run `tactile-force record --repair DIR`).
+* checkpoint metadata (`"tactile_force"` key): a dict with text keys; `variant` a known
+  variant, `width` in (0, 4], `input_scale` in (0, 1]; every other value text, a finite
+  number, a boolean, None or lists/dicts of those. Checked when the file is loaded, before
+  any export work.
+* a manifest that does not fit its graph (the MUST-REFUSE cases: changed `sha256`, `variant`,
+  `onnx_file`, `inputs`, `output`, `format_version`) must be refused by `load_bundle` or, at
+  the latest, by `OnnxForceModel` and `bundle verify`; any other mutation may load or be
+  refused, but never with another exception type.
+
+Fault cases: `kill -9` of a recording (a subprocess, `tests/robustness/record_kill_worker.py`)
+at each write phase of a sample (image temp file, image renamed, half a meta line, meta line,
+label temp file, label renamed), then `record` resumes: every complete sample must read and the
+new sample follows them. `meta.jsonl` cut at every byte of its last line: the reader names
+file and line, `tactile-force record --repair DIR` (no hardware) keeps all samples. Disk full:
+`tactile-force record` (DIGIT and HID scale faked at the hardware boundary) on a small real
+filesystem until it is full: exit 1, the summary printed, every sample written readable, no
+temp file left. Replay folder deleted mid-run, unpaced and paced: the next read raises
+`SourceError` ("disappeared"); nothing is counted as corrupt frames."""
+
+#: Issue 11 "What was measured" bullets -> the tests that fail on 9ed225d and pass now.
+COVERAGE = [
+    ("Non-UTF-8 label kills replay / dataset reader / `quantize --calib`",
+     "tests/robustness/test_labels.py::test_every_reader_agrees_on_every_label, "
+     "::test_dataset_reader_and_calib_refuse_a_non_utf8_label, "
+     "::test_replay_warns_once_per_bad_label_and_keeps_running"),
+    ("Truncated / binary `meta.jsonl` without the file name",
+     "tests/robustness/test_labels.py::test_truncated_or_binary_meta_names_file_and_line, "
+     "::test_meta_jsonl_loads_or_names_file_and_line"),
+    ("`record` resumes onto a truncated last meta line",
+     "tests/robustness/test_record_faults.py::test_resume_repairs_a_truncated_last_line_instead_of_appending_to_it, "
+     "::test_kill_9_at_each_write_phase_loses_no_complete_sample, ::test_repair_without_hardware"),
+    ("Bundle `--force` replace not atomic; `.partial` folders left (lead)",
+     "tests/edge/test_bundle_writes.py::test_kill_9_at_every_write_phase_leaves_a_complete_bundle, "
+     "::test_a_live_writer_partial_is_not_stale"),
+    ("Graph does not fit the frame contract; `bundle verify` tracebacks / OK for `variant: d`; "
+     "`bundle show` KeyError on partial sections; `onnx_file` outside the bundle (lead)",
+     "tests/edge/test_bundle_writes.py::test_graphs_that_break_the_frame_contract_are_refused_at_load, "
+     "tests/edge/test_manifest.py::test_bundle_verify_refuses_a_variant_the_graph_does_not_have, "
+     "::test_onnx_file_outside_the_bundle_is_never_followed, ::test_damaged_manifest_files_name_the_file; "
+     "tests/robustness/test_manifests.py (property test + the issue's manifests through load, verify and show)"),
+    ("Disk full during `record`: raw OSError, summary lost",
+     "tests/robustness/test_record_faults.py::test_disk_full_stops_cleanly_with_the_summary"),
+    ("Scene values give TypeError / ZeroDivisionError / ValueError; `scene show` too lenient (B1)",
+     "tests/edge/test_scene_validation.py::test_bad_scene_values_are_named_with_key_and_file, "
+     "::test_bad_scenes_exit_2_without_traceback, ::test_csv_path_that_is_a_folder_fails_before_the_model_is_loaded, "
+     "::test_scene_show_exits_2_when_a_listed_file_is_missing; tests/robustness/test_scenes.py (property test)"),
+    ("Runs producing nothing exit 0 (VGA video, all-corrupt replay) (B1)",
+     "tests/edge/test_scene_validation.py::test_vga_video_exits_2_with_a_message, "
+     "::test_all_corrupt_replay_folder_exits_2_with_a_message; "
+     "tests/robustness/test_video_source.py::test_vga_video_is_refused_naming_its_size"),
+    ("Replay folder deleted mid-run: no error, 938 frames 'corrupt'",
+     "tests/robustness/test_replay_vanish.py::test_vanished_replay_folder_is_a_clear_error, "
+     "::test_no_frame_counted_corrupt_after_the_folder_is_gone"),
+    ("Checkpoint metadata `width: \"abc\"`, a list, a tensor in `note`",
+     "tests/robustness/test_checkpoint_meta.py::test_metadata_is_accepted_or_refused_naming_the_key, "
+     "::test_bad_metadata_is_refused_before_any_export_work, ::test_list_metadata_is_named"),
+    ("Replay silently turns bad labels into `truth = None`; -5 N and 1e308 N accepted",
+     "tests/robustness/test_labels.py::test_every_reader_agrees_on_every_label, "
+     "::test_bad_label_messages_name_the_file_and_the_problem, "
+     "::test_replay_warns_once_per_bad_label_and_keeps_running"),
+    ("`export --opset 99` records 99; `quantize --max-frames 0` = unlimited; colour PNGs for a D bundle",
+     "tests/robustness/test_cli_args.py::test_bad_arguments_exit_2_naming_the_flag, "
+     "::test_max_frames_zero_is_not_unlimited, ::test_calibration_frames_with_the_wrong_channels_are_refused"),
+    ("`demo --grasps 0` / `--threads 0` (B1); `synth --n 0`, `synth --out FILE`; exposure reads a "
+     "checkerboard as all-white",
+     "tests/edge/test_scene_validation.py::test_bad_flags_exit_2_with_a_clear_line (B1); "
+     "tests/robustness/test_cli_args.py::test_bad_arguments_exit_2_naming_the_flag; "
+     "tests/robustness/test_frames.py::test_checkerboard_is_not_all_white, "
+     "::test_exposure_verdict_matches_the_whole_frame"),
+]
+
+
+BASELINE_COMMIT = "9ed225d"
+
+
+def page(tallies: list[Tally], command: str, examples: int, baseline: str = "") -> str:
+    from .machine import describe_machine, header
+
+    disk = next((t.note for t in tallies if t.note), "")
+    bad = failures(tallies)
+    lines = [header("Robustness: bad inputs and faults", command, describe_machine(), NOTES),
+             f"{examples} generated cases per generated category.", "", table(tallies), "",
+             f"Disk full was made with: {disk}.", ""]
+    if bad:
+        lines += ["## Cases that went wrong", ""] + [f"* {b}" for b in bad] + [""]
+    if baseline:
+        lines += [f"## The same catalogue at commit {BASELINE_COMMIT} (before issue 11)", "",
+                  f"Command: `python -m benchmarks.robustness_baseline {BASELINE_COMMIT} --examples {examples}` "
+                  "(that commit's package, this checkout's cases and oracles; run by the command above).", "",
+                  baseline, "",
+                  "At that commit some categories fail for reasons beyond the one tested (e.g. `record --repair` "
+                  "did not exist, so every truncation case is also a usage error there); a case counts once, "
+                  "under the worst outcome.", ""]
+    lines += ["## Issue 11's findings and the tests that pin them", "",
+              "Each test fails on commit 9ed225d's behaviour and passes now; (lead) and (B1) name the "
+              "helpers whose code and tests cover that part.", "",
+              "| finding at 9ed225d | tests |", "|---|---|"]
+    lines += [f"| {a} | {b} |" for a, b in COVERAGE]
+    lines += ["", "The suite itself: `python -m pytest -q tests/robustness` (bounded hypothesis runs, "
+              "30 examples per property test)."]
+    return "\n".join(lines) + "\n"
+
+
+def run(args, argv: list[str]) -> int:
+    """``python -m benchmarks robustness``: run the catalogue, print the table, write the page.
+    Exit 1 when any case is a traceback, silent wrong, hang, data lost or valid refused."""
+    from .machine import command_line
+
+    examples = 15 if args.quick else args.examples
+    out = Path(args.out)
+    if args.quick and out.resolve().is_relative_to((REPO / "docs").resolve()):
+        print(f"--quick results are a smoke run and never go into the docs; pick another --out than {out}",
+              file=sys.stderr)
+        return 2
+    logging.getLogger("tactile_force").addHandler(logging.NullHandler())  # warnings are counted, not printed
+    tallies = run_catalogue(examples, log=lambda s: print(s, flush=True))
+    print(table(tallies))
+    for b in failures(tallies):
+        print(f"  ! {b}")
+    baseline = ""
+    if not args.quick:
+        from .robustness_baseline import baseline_table
+
+        print(f"the same catalogue at {BASELINE_COMMIT} ...", flush=True)
+        try:
+            baseline = baseline_table(BASELINE_COMMIT, examples)
+        except (subprocess.CalledProcessError, subprocess.TimeoutExpired, RuntimeError, OSError) as exc:
+            baseline = f"(not run: {str(exc)[:300]})"
+        print(baseline)
+    out.mkdir(parents=True, exist_ok=True)
+    dest = out / "robustness.md"
+    dest.write_text(page(tallies, command_line(argv), examples, baseline))
+    print(f"wrote {dest}")
+    return 1 if failures(tallies) else 0

@@ -339,7 +339,8 @@ def main(args: argparse.Namespace) -> int:
     assert b is not None and a is not None
     print(f"calibrated on {cal.data}: true force {cal.force_range_n[0]:.2f} to {cal.force_range_n[1]:.2f} N, "
           f"Spearman {cal.spearman:.3f}, {cal.method} map with {len(cal.raw_n)} knots")
-    print(f"leave-one-out  before (raw): RE {b.re_mean:.3f} +- {b.re_std:.3f}, MAE {b.mae_mean:.2f} +- {b.mae_std:.2f} N")
-    print(f"leave-one-out  after:        RE {a.re_mean:.3f} +- {a.re_std:.3f}, MAE {a.mae_mean:.2f} +- {a.mae_std:.2f} N")
+    for label, f in (("before (raw)", b), ("after       ", a)):
+        print(f"leave-one-out  {label}: RE {f.re_mean:.3f} +- {f.re_std:.3f}, "
+              f"MAE {f.mae_mean:.2f} +- {f.mae_std:.2f} N")
     print(f"wrote {bundle.path}")
     return 0

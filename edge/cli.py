@@ -3,6 +3,11 @@
 Each subcommand lives in the module that owns its work and exposes two functions,
 ``configure(parser)`` and ``main(args) -> int``. Only the chosen subcommand's module is
 imported, so ``tactile-force run`` never imports torch and ``--help`` is instant.
+
+One error contract for every command: exit 0 success, 1 a check failed (parity, verify,
+budget; :class:`~tactile_force.edge.errors.CheckFailedError`), 2 bad input or usage (any
+other TactileForceError, an OSError on a path the user gave, a missing extra, an argparse
+error), 130 interrupted. Errors are one line; ``--debug`` shows the traceback.
 """
 
 from __future__ import annotations

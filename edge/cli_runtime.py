@@ -178,30 +178,25 @@ def truth_lines(readings: list[ForceReading]) -> list[str]:
 
 
 class LearningStatus:
-    """A reading sink: while a gate learns its background, one status line on ``stream``
-    says so (``sensor: learning the background (frame k): keep the sensor untouched``)."""
+    """A reading sink that says when a sensor's background has been learnt:
+    ``left: background learnt from 5 frames`` on ``stream`` (the live status line shows
+    ``learning background`` meanwhile, from the readings' detail)."""
 
     def __init__(self, stream: TextIO | None = None) -> None:
         self.stream = stream or sys.stderr
         self._learning: dict[str, int] = {}
-        self._open = False
 
     def write(self, r: ForceReading) -> None:
         if r.detail == "learning background":
-            k = self._learning[r.sensor] = self._learning.get(r.sensor, 0) + 1
-            self.stream.write(f"\r{r.sensor}: learning the background (frame {k}): keep the sensor untouched ")
+            self._learning[r.sensor] = self._learning.get(r.sensor, 0) + 1
+        elif r.sensor in self._learning and Flags.STALE not in r.flags:
+            self.stream.write(f"\n{r.sensor}: background learnt from {self._learning.pop(r.sensor)} frames\n")
             self.stream.flush()
-            self._open = True
-        elif self._open and r.sensor in self._learning:
-            self.stream.write(f"\r{r.sensor}: background learnt from {self._learning.pop(r.sensor)} frames"
-                              + " " * 30 + "\n")
-            self.stream.flush()
-            self._open = bool(self._learning)
 
     def close(self) -> None:
-        if self._open:
-            self.stream.write("\n")
-            self._open = False
+        for name, n in self._learning.items():
+            self.stream.write(f"\n{name}: still learning the background after {n} frames when the run ended\n")
+        self._learning.clear()
 
 
 def _run_scene(args: argparse.Namespace):
@@ -238,7 +233,8 @@ def main_run(args: argparse.Namespace) -> int:
     if not built.sinks:
         from .outputs import StdoutWriter
 
-        built.sinks.append(StdoutWriter(live=True, stream=sys.stderr, p99_ms=lambda: rt.latency()["total"]["p99"], every=4))
+        built.sinks.append(StdoutWriter(live=True, stream=sys.stderr, p99_ms=lambda: rt.latency()["total"]["p99"],
+                                        every=4))
     status = LearningStatus()
     readings: list[ForceReading] = []
     limit = args.max_frames if args.max_frames is not None else (scene.max_frames or None)
@@ -444,7 +440,8 @@ def main_demo(args: argparse.Namespace) -> int:
     print(f"virtual DIGIT: {args.grasps} grasps, seed {args.seed} -> bundle {bundle}")
     s = run_demo(source, bundle, out, threads=args.threads)
     if s.error:
-        print(f"error vs truth over {s.error['n']} CNN readings: RE {s.error['re_mean']:.3f} +- {s.error['re_std']:.3f}, "
+        print(f"error vs truth over {s.error['n']} CNN readings: "
+              f"RE {s.error['re_mean']:.3f} +- {s.error['re_std']:.3f}, "
               f"MAE {s.error['mae_mean']:.3f} +- {s.error['mae_std']:.3f} N")
     if s.gate_agreement is not None:
         print(f"gate agrees with truth (contact <=> >= 1 N) on {100 * s.gate_agreement:.1f} % of frames")

@@ -16,9 +16,9 @@ from __future__ import annotations
 import json
 import os
 import re
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterator
 
 import cv2
 import numpy as np
@@ -71,7 +71,8 @@ class AuthorsDataset:
         self.root = Path(root)
         img_dir = self.root / "images"
         if not img_dir.is_dir():
-            raise DatasetError(f"{self.root}: no 'images/' folder; expected the layout images/N.png, forces/force_N.txt")
+            raise DatasetError(f"{self.root}: no 'images/' folder; "
+                               "expected the layout images/N.png, forces/force_N.txt")
         ids = sorted(int(m.group(1)) for p in img_dir.iterdir() if (m := _IMG_RE.match(p.name)))
         if not ids:
             raise DatasetError(f"{img_dir}: no images named N.png")
@@ -167,7 +168,7 @@ class AuthorsDatasetWriter:
             self._meta.close()
             self._meta = None
 
-    def __enter__(self) -> "AuthorsDatasetWriter":
+    def __enter__(self) -> AuthorsDatasetWriter:
         return self
 
     def __exit__(self, *exc) -> None:

@@ -155,7 +155,7 @@ class FrameSource:
     def close(self) -> None:
         """Release the device or file; safe to call twice."""
 
-    def __enter__(self) -> "FrameSource":
+    def __enter__(self) -> FrameSource:
         return self
 
     def __exit__(self, *exc) -> None:

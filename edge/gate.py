@@ -32,8 +32,8 @@ does not look like contact. Then the frame is judged:
 from __future__ import annotations
 
 import logging
+from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import Iterable
 
 import cv2
 import numpy as np
@@ -101,7 +101,7 @@ class GateOptions:
     stable_level: float = 2.0
 
     @classmethod
-    def gelsight_mini(cls, **overrides: object) -> "GateOptions":
+    def gelsight_mini(cls, **overrides: object) -> GateOptions:
         """Settings for a GelSight Mini (480x640): its LEDs make a stronger colour halo
         around the contact than a DIGIT's, so a higher threshold, convex hulls (ball and
         other convex indenters) and a finer working resolution (x2). On the 16 labelled ball
@@ -304,8 +304,8 @@ class ContactGate:
             noise.append(self._noise(w))
         if not work:
             raise FrameError("capture_background: no frames given; expected at least one no-contact frame")
-        self._set_background(np.mean(work, axis=0, dtype=np.float32), np.mean(thumbs, axis=0, dtype=np.float32),
-                             float(np.mean(noise)))
+        self._set_background(np.asarray(np.mean(work, axis=0, dtype=np.float32)),
+                             np.asarray(np.mean(thumbs, axis=0, dtype=np.float32)), float(np.mean(noise)))
         self._given, self._given_origin = (5, origin) if origin else (0, "")
 
     def reset(self) -> None:
@@ -334,8 +334,8 @@ class ContactGate:
             self._learn_thumbs.append(thumb.astype(np.float32))
             self._learn_noise.append(self._noise(work))
             if len(self._learn) >= o.background_frames:
-                self._set_background(np.mean(self._learn, axis=0, dtype=np.float32),
-                                     np.mean(self._learn_thumbs, axis=0, dtype=np.float32),
+                self._set_background(np.asarray(np.mean(self._learn, axis=0, dtype=np.float32)),
+                                     np.asarray(np.mean(self._learn_thumbs, axis=0, dtype=np.float32)),
                                      float(np.mean(self._learn_noise)))
                 self._learn_noise.clear()
                 self._learn.clear()
@@ -349,9 +349,9 @@ class ContactGate:
 
         y = None
         if o.trust:
-            y = self._thumb_f
-            np.copyto(y, thumb.reshape(-1, 3), casting="unsafe")
-            self._fit(y)
+            np.copyto(self._thumb_f, thumb, casting="unsafe")
+            y = self._thumb_f.reshape(-1, 3)
+            self._fit()
         # Model of the frame = background x gain + offset per channel (uint8), then the max
         # over B, G, R of |frame - model| > threshold <=> not all channels within [0, t].
         self._M[self._diag] = self._gain
@@ -427,30 +427,35 @@ class ContactGate:
         return r
 
     # -- trust ----------------------------------------------------------------------------
-    def _fit(self, y: np.ndarray) -> None:
-        """Per-channel gain/offset (frame = gain x background + offset) fitted on the thumbnail
-        cells that fit the previous model (all cells when fewer than half do); sets
-        ``self._resid`` (max-channel |residual| per cell) and ``self._fit_frac``."""
-        ref = self._ref
-        assert ref is not None
-        o = self.options
-        x = ref.x
-        e = self._resid
-        np.abs(y - (x * self._gain + self._offset), out=self._res3)
-        np.max(self._res3, axis=1, out=e)
-        w = (e < o.fit_tolerance).astype(np.float32)
-        n = float(w.sum())
-        if n < 0.5 * len(w):
-            w[:] = 1.0
-            n = float(len(w))
-        sx, sy, sxx, sxy = w @ x, w @ y, w @ (x * x), w @ (x * y)
-        den = n * sxx - sx * sx
-        gain = np.where(den > 1e-3, (n * sxy - sx * sy) / np.maximum(den, 1e-3), 0.0)
-        self._gain[:] = gain
-        self._offset[:] = (sy - gain * sx) / n
-        np.abs(y - (x * self._gain + self._offset), out=self._res3)
-        np.max(self._res3, axis=1, out=e)
-        self._fit_frac = float(np.count_nonzero(e < o.fit_tolerance)) / len(e)
+    def _residual(self) -> int:
+        """|thumbnail - (gain x background + offset)| per cell and channel into ``_tres``, the
+        cells within ``fit_tolerance`` on every channel into ``_inl``; returns their count."""
+        assert self._bg_thumb is not None
+        self._M[self._diag] = self._gain
+        self._M[:, 3] = self._offset
+        cv2.transform(self._bg_thumb, self._M, dst=self._tmodel)
+        cv2.absdiff(self._thumb_f, self._tmodel, dst=self._tres)
+        cv2.inRange(self._tres, self._zero, self._tol, dst=self._inl)
+        return cv2.countNonZero(self._inl)
+
+    def _fit(self) -> None:
+        """Per-channel gain/offset (frame = gain x background + offset), least squares over
+        the thumbnail cells that fit the previous model (all cells when fewer than half do:
+        after a sudden change); sets ``_inl`` (cells that fit now) and ``_fit_frac``."""
+        bg = self._bg_thumb
+        assert bg is not None
+        cells = self._inl.size
+        mask = self._inl if self._residual() >= cells // 2 else None
+        cv2.multiply(bg, self._thumb_f, dst=self._txy)
+        mx, sx = cv2.meanStdDev(bg, mask=mask)
+        my = cv2.mean(self._thumb_f, mask=mask)
+        mxy = cv2.mean(self._txy, mask=mask)
+        for c in range(3):
+            m, var = float(mx[c, 0]), float(sx[c, 0]) ** 2
+            g = (mxy[c] - m * my[c]) / var if var > 1e-3 else 0.0
+            self._gain[c] = g
+            self._offset[c] = my[c] - g * m
+        self._fit_frac = self._residual() / cells
 
     def _judge(self, y: np.ndarray, work: np.ndarray, thumb: np.ndarray, frac: float,
                was_contact: bool) -> tuple[str, str]:
@@ -460,37 +465,48 @@ class ContactGate:
         ref = self._ref
         assert ref is not None
         invalid = ""
-        step = float(np.max(np.abs((self._gain - 1.0) * (self._ones @ ref.x) / len(ref.x) + self._offset)))
+        assert self._bg_thumb is not None
+        level = cv2.mean(self._bg_thumb)
+        gain, offset = self._gain.tolist(), self._offset.tolist()
+        step = max(abs((gain[c] - 1.0) * level[c] + offset[c]) for c in range(3))
         global_change = self._fit_frac < o.fit_floor
-        suspicious = global_change or step > o.step_level or frac > 0 or self._mismatch
+        contrast = max(abs(g - 1.0) for g in gain)
+        photometric = step > o.step_level or contrast > 0.5
+        suspicious = global_change or photometric or frac > 0 or self._mismatch
         if not suspicious:
             self._clear_mismatch()
             return "", ""
         # Pixel noise: mean |frame - blurred| against the background's level.
         noise = self._noise(work)
-        if noise > o.noise_factor * self._bg_noise * max(1.0, float(self._gain.max())) + 1.0:
+        if noise > o.noise_factor * self._bg_noise * max(1.0, *gain) + 1.0:
             invalid = (f"noise burst: pixel noise {noise:.1f} grey levels against {self._bg_noise:.1f} in the "
                        "background (interference, a failing cable or camera?)")
         reason, kind = "", ""
-        if not invalid and (global_change or step > o.step_level):
+        if not invalid and (global_change or photometric):
             if float(y.std(axis=0).max()) < 2.0:
                 invalid = "uniform frame: no gel image (LEDs off, lens covered, a test pattern or a stalled camera?)"
             elif global_change and self._colour_swapped(y):
                 invalid = ("colour order: the frame fits the background far better with B and R swapped; the source "
                            "delivers RGB, the package expects BGR (OpenCV order): convert with frame[..., ::-1]")
         if not invalid:
-            explained = self._motion_explained(y, ref) if (frac > 0 or global_change or self._fit_frac < 0.98) else 0.0
+            # A change that appears at once (no contact tracked) is checked for motion and
+            # occlusion; a tracked contact is not re-checked every frame.
+            onset = not was_contact or global_change
+            explained = self._motion_explained(ref) if onset and self._fit_frac < 0.98 else 0.0
             if explained > o.motion_explained:
                 reason, kind = (f"the gel or camera moved: {100 * explained:.0f} % of the difference is a shift or "
                                 "rotation of the background", "global")
+            elif onset and frac > 0 and self._dark_share(y, ref) > 0.04:
+                reason, kind = ("part of the gel is covered or dark (occlusion, a cable or finger in view, "
+                                "a failed LED?)", "global")
             elif global_change and not was_contact:
                 reason, kind = (f"the frame no longer fits the background: only {100 * self._fit_frac:.0f} % of it "
                                 "fits (another sensor unit or session, occlusion, colour cast?)", "global")
-            elif step > o.step_level and self._fit_frac >= 0.5:
-                g = "/".join(f"{v:.2f}" for v in self._gain)
+            elif photometric and self._fit_frac >= o.fit_floor:
+                g = "/".join(f"{v:.2f}" for v in gain)
                 reason, kind = (f"sudden brightness step of {step:.0f} grey levels (LED/exposure: gain B/G/R {g})",
                                 "photometric")
-            elif self._mismatch and self._fit_frac >= 0.8 and step <= o.step_level:
+            elif self._mismatch and self._fit_frac >= 0.8 and not photometric:
                 self._clear_mismatch()
         if self._given and reason:
             reason = (f"the background given at start ({self._given_origin}) does not fit the live frames: {reason}; "
@@ -508,6 +524,12 @@ class ContactGate:
             return invalid, self._mismatch
         return invalid, ""
 
+    @staticmethod
+    def _dark_share(y: np.ndarray, ref: _Reference) -> float:
+        """Share of thumbnail cells where every channel fell below 45 % of the background's
+        (a contact shifts colours; it does not black out the gel)."""
+        return float(np.mean((y < 0.45 * ref.x + 2.0).all(axis=1)))
+
     def _colour_swapped(self, y: np.ndarray) -> bool:
         """True when B and R swapped fit the background far better than the frame as it is."""
         ref = self._ref
@@ -522,14 +544,14 @@ class ContactGate:
         frac = float(np.mean(np.abs(ys - (x * gain + off)).max(axis=1) < self.options.fit_tolerance))
         return frac >= 0.7 and frac >= self._fit_frac + 0.3
 
-    def _motion_explained(self, y: np.ndarray, ref: _Reference) -> float:
+    def _motion_explained(self, ref: _Reference) -> float:
         """Share of the residual energy a shift/rotation of the background explains (0..1)."""
-        r = (y - (ref.x * self._gain + self._offset)).ravel()
-        energy = float(r @ r)
-        if energy < len(r) * 4.0:  # rms residual under 2 grey levels: nothing to explain
+        cv2.subtract(self._thumb_f, self._tmodel, dst=self._tr)
+        energy = cv2.norm(self._tr, cv2.NORM_L2SQR)
+        if energy < self._tr.size * 4.0:  # rms residual under 2 grey levels: nothing to explain
             return 0.0
         pinv, gtg = ref.motion()
-        d = pinv @ r
+        d = pinv @ self._tr.reshape(-1)
         return float(d @ gtg @ d) / energy
 
     def _enter_mismatch(self, reason: str, kind: str) -> None:
@@ -576,7 +598,7 @@ class ContactGate:
         """How many of the four border strips (2 thumbnail cells wide) mostly do not fit."""
         ref = self._ref
         assert ref is not None
-        bad = (self._resid >= self.options.fit_tolerance).reshape(ref.rows, ref.cols)
+        bad = self._inl == 0
         strips = (bad[:2], bad[-2:], bad[:, :2], bad[:, -2:])
         return sum(1 for s in strips if s.mean() > 0.5)
 
@@ -617,9 +639,13 @@ class ContactGate:
         self._small = np.empty((wh, ww, 3), np.uint8)
         self._work = np.empty((wh, ww, 3), np.uint8)
         self._thumb = np.empty((th, tw, 3), np.uint8)
-        self._thumb_f = np.empty((th * tw, 3), np.float32)
-        self._res3 = np.empty((th * tw, 3), np.float32)
-        self._resid = np.zeros(th * tw, np.float32)
+        self._thumb_f = np.empty((th, tw, 3), np.float32)
+        self._tmodel = np.empty((th, tw, 3), np.float32)
+        self._tres = np.empty((th, tw, 3), np.float32)
+        self._tr = np.empty((th, tw, 3), np.float32)
+        self._txy = np.empty((th, tw, 3), np.float32)
+        self._inl = np.full((th, tw), 255, np.uint8)
+        self._tol = np.full(3, float(o.fit_tolerance), np.float64)
         self._fit_frac = 1.0
         self._model_f = np.empty((wh, ww, 3), np.float32)
         self._model = np.empty((wh, ww, 3), np.uint8)
@@ -636,7 +662,6 @@ class ContactGate:
         self._full_area = h * w
         self._min_blob = o.min_blob_frac * self._work_area
         self._kernel = cv2.getStructuringElement(cv2.MORPH_RECT, (3, 3))
-        self._ones = np.ones(th * tw, np.float32)
         self._diag = (np.arange(3), np.arange(3))
 
     def _prepare(self, arr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -646,7 +671,8 @@ class ContactGate:
         s = int(self.options.downscale)
         src = arr
         if s > 1:
-            cv2.resize(arr, (self._small.shape[1], self._small.shape[0]), dst=self._small, interpolation=cv2.INTER_LINEAR)
+            cv2.resize(arr, (self._small.shape[1], self._small.shape[0]), dst=self._small,
+                       interpolation=cv2.INTER_LINEAR)
             src = self._small
         else:
             np.copyto(self._small, arr)
@@ -655,5 +681,6 @@ class ContactGate:
             cv2.GaussianBlur(src, (b, b), 0, dst=self._work)
         else:
             np.copyto(self._work, src)
-        cv2.resize(self._work, (self._thumb.shape[1], self._thumb.shape[0]), dst=self._thumb, interpolation=cv2.INTER_AREA)
+        cv2.resize(self._work, (self._thumb.shape[1], self._thumb.shape[0]), dst=self._thumb,
+                   interpolation=cv2.INTER_AREA)
         return self._work, self._thumb

@@ -66,6 +66,8 @@ def parse_force_text(data: bytes, where: str) -> float:
     first = lines[0]
     token = re.split(r"[\s,;]+", first, maxsplit=1)[0]
     if not _NUMBER.fullmatch(token):
+        if token.lower().lstrip("+-") in ("nan", "inf", "infinity"):
+            raise LabelError(f"{where}: force {token!r} is not finite; {_EXPECTED}")
         raise LabelError(f"{where}: first line {first[:40]!r} is not a number; {_EXPECTED}")
     return check_force(float(token), where)
 
@@ -114,8 +116,11 @@ def parse_meta_lines(data: bytes, where: str) -> dict[int, dict]:
                              f"expected one JSON object per line{hint}") from None
         try:
             rec = json.loads(text)
-        except ValueError as exc:
+        except json.JSONDecodeError as exc:
             raise LabelError(f"{where} line {k}: not valid JSON ({exc.msg} at column {exc.colno}); "
+                             f"expected one JSON object per line{hint}") from None
+        except (ValueError, RecursionError):  # e.g. nesting too deep for the parser
+            raise LabelError(f"{where} line {k}: not a JSON object this reader can parse; "
                              f"expected one JSON object per line{hint}") from None
         if not isinstance(rec, dict):
             raise LabelError(f"{where} line {k}: a JSON {type(rec).__name__}; expected an object with \"id\"")
@@ -155,7 +160,7 @@ def complete_meta_prefix(data: bytes, keep_ids: set[int] | None = None) -> int:
                 rec = json.loads(line.decode("utf-8"))
                 n = rec.get("id") if isinstance(rec, dict) else None
                 ok = isinstance(n, int) and not isinstance(n, bool) and (keep_ids is None or n in keep_ids)
-            except ValueError:
+            except (ValueError, RecursionError):
                 ok = False
             if ok:
                 return end

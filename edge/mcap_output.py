@@ -27,7 +27,7 @@ from typing import IO, NamedTuple
 import cv2
 import numpy as np
 
-from .errors import require
+from .errors import FrameError, SceneError, require
 from .reading import ForceReading
 from .ros2_names import StampClock, ros_topic
 
@@ -42,6 +42,39 @@ class McapMessage(NamedTuple):
     type_name: str
     log_time_ns: int
     data: bytes
+
+
+def image_topic(namespace: str, sensor: str, what: str = "image") -> str:
+    """``<namespace>/<sensor>/<what>/compressed``; SceneError when ``sensor`` is not a valid
+    ROS 2 name token."""
+    return ros_topic(f"{namespace}/{sensor}/{what}/compressed", f"image topic for sensor {sensor!r}")
+
+
+def image_payloads(namespace: str, sensor: str, timestamp_ns: int, frame_bgr: np.ndarray | None,
+                   mask: np.ndarray | None, clock: StampClock) -> list[tuple[str, str, bytes]]:
+    """(topic, type name, CDR bytes) of a frame (HxWx3 uint8 BGR -> JPEG CompressedImage)
+    and a contact mask (HxW bool/uint8, non-zero = contact -> PNG, 255 = contact), each
+    when not None. FrameError (a ValueError) naming the sensor for a wrong shape or dtype."""
+    from . import ros2_messages as m
+
+    out = []
+    if frame_bgr is not None:
+        if frame_bgr.ndim != 3 or frame_bgr.shape[2] != 3 or frame_bgr.dtype != np.uint8:
+            raise FrameError(f"frame of {sensor}: shape {frame_bgr.shape} {frame_bgr.dtype}; expected HxWx3 uint8 BGR")
+        ok, buf = cv2.imencode(".jpg", frame_bgr, [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
+        if not ok:
+            raise FrameError(f"frame of {sensor}: OpenCV could not encode it as JPEG")
+        out.append((image_topic(namespace, sensor), m.COMPRESSED_IMAGE,
+                    m.compressed_image(sensor, timestamp_ns, buf.tobytes(), "jpeg", clock).serialize()))
+    if mask is not None:
+        if mask.ndim != 2 or mask.dtype not in (np.bool_, np.uint8):
+            raise FrameError(f"contact mask of {sensor}: shape {mask.shape} {mask.dtype}; expected HxW bool or uint8")
+        ok, buf = cv2.imencode(".png", np.where(mask != 0, 255, 0).astype(np.uint8))
+        if not ok:
+            raise FrameError(f"contact mask of {sensor}: OpenCV could not encode it as PNG")
+        out.append((image_topic(namespace, sensor, "contact_mask"), m.COMPRESSED_IMAGE,
+                    m.compressed_image(sensor, timestamp_ns, buf.tobytes(), "png", clock).serialize()))
+    return out
 
 
 class McapWriter:
@@ -70,7 +103,7 @@ class McapWriter:
                  topic: str = "/tactile/force", flush_every: int = 1, fsync: bool = False,
                  stamp_clock: StampClock | None = None) -> None:
         if isinstance(flush_every, bool) or not isinstance(flush_every, int) or flush_every < 1:
-            raise ValueError(f"MCAP flush_every={flush_every!r}: expected an integer >= 1")
+            raise SceneError(f"MCAP flush_every={flush_every!r}: expected an integer >= 1")
         self.topic = ros_topic(topic, "MCAP topic")
         self.namespace = self.topic.rsplit("/", 1)[0]
         self.frames = frames
@@ -87,7 +120,7 @@ class McapWriter:
 
         self._msgs = msgs
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._fh: IO[bytes] = open(self.path, "wb")  # noqa: SIM115 - held open until close()
+        self._fh: IO[bytes] = open(self.path, "wb")  # held open until close()
         # Chunks hold a reading or a few; compressing them gains little, and JPEG/PNG are compressed.
         self._writer = Writer(self._fh, compression=CompressionType.NONE)
         self._writer.start(profile="ros2", library="tactile-force")
@@ -113,9 +146,9 @@ class McapWriter:
         return cid
 
     def image_topic(self, sensor: str, what: str = "image") -> str:
-        """``<namespace>/<sensor>/<what>/compressed``; ValueError when ``sensor`` is not a valid
-        ROS 2 name token."""
-        return ros_topic(f"{self.namespace}/{sensor}/{what}/compressed", f"MCAP image topic for sensor {sensor!r}")
+        """``<namespace>/<sensor>/<what>/compressed``; SceneError for a sensor name that is
+        not a valid ROS 2 name token."""
+        return image_topic(self.namespace, sensor, what)
 
     def _add(self, topic: str, type_name: str, monotonic_ns: int, data: bytes) -> None:
         cid = self._channel(topic, type_name)
@@ -135,11 +168,8 @@ class McapWriter:
         """Log one reading (WrenchStamped + DiagnosticArray)."""
         if self._closed:
             raise RuntimeError(f"MCAP file {self.path}: write after close")
-        m = self._msgs
-        self._add(self.topic, m.WRENCH_STAMPED, reading.timestamp_ns,
-                  m.wrench_message(reading, self.clock).serialize())
-        self._add(self.topic + "/diagnostics", m.DIAGNOSTIC_ARRAY, reading.timestamp_ns,
-                  m.diagnostic_message(reading, self.clock).serialize())
+        for topic, type_name, data in self._msgs.reading_payloads(reading, self.clock, self.topic):
+            self._add(topic, type_name, reading.timestamp_ns, data)
         self.readings += 1
         self._since_flush += 1
         if self._since_flush >= self.flush_every:
@@ -149,28 +179,13 @@ class McapWriter:
                     mask: np.ndarray | None = None) -> None:
         """Log the frame (HxWx3 uint8 BGR, JPEG) and/or contact mask (HxW bool or uint8,
         non-zero = contact, PNG) of a reading; each only when enabled at construction.
-        Flushed with the next reading. ValueError for a wrong shape or dtype."""
+        Flushed with the next reading. FrameError (a ValueError) for a wrong shape or dtype."""
         if self._closed:
             raise RuntimeError(f"MCAP file {self.path}: write after close")
-        m = self._msgs
-        if self.frames and frame_bgr is not None:
-            if frame_bgr.ndim != 3 or frame_bgr.shape[2] != 3 or frame_bgr.dtype != np.uint8:
-                raise ValueError(f"MCAP frame of {sensor}: shape {frame_bgr.shape} {frame_bgr.dtype}; "
-                                 "expected HxWx3 uint8 BGR")
-            ok, buf = cv2.imencode(".jpg", frame_bgr, [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
-            if not ok:
-                raise ValueError(f"MCAP frame of {sensor}: OpenCV could not encode it as JPEG")
-            self._add(self.image_topic(sensor), m.COMPRESSED_IMAGE, timestamp_ns,
-                      m.compressed_image(sensor, timestamp_ns, buf.tobytes(), "jpeg", self.clock).serialize())
-        if self.mask and mask is not None:
-            if mask.ndim != 2 or mask.dtype not in (np.bool_, np.uint8):
-                raise ValueError(f"MCAP contact mask of {sensor}: shape {mask.shape} {mask.dtype}; "
-                                 "expected HxW bool or uint8")
-            ok, buf = cv2.imencode(".png", np.where(mask != 0, 255, 0).astype(np.uint8))
-            if not ok:
-                raise ValueError(f"MCAP contact mask of {sensor}: OpenCV could not encode it as PNG")
-            self._add(self.image_topic(sensor, "contact_mask"), m.COMPRESSED_IMAGE, timestamp_ns,
-                      m.compressed_image(sensor, timestamp_ns, buf.tobytes(), "png", self.clock).serialize())
+        for topic, type_name, data in image_payloads(self.namespace, sensor, timestamp_ns,
+                                                     frame_bgr if self.frames else None,
+                                                     mask if self.mask else None, self.clock):
+            self._add(topic, type_name, timestamp_ns, data)
 
     def close(self) -> None:
         """Write the last chunk, the summary and the footer, and close the file; safe twice."""
@@ -185,7 +200,7 @@ class McapWriter:
         finally:
             self._fh.close()
 
-    def __enter__(self) -> McapWriter:  # noqa: PYI034
+    def __enter__(self) -> McapWriter:
         return self
 
     def __exit__(self, *exc) -> None:

@@ -98,7 +98,8 @@ class StdoutWriter:
         if self._n % self._every:
             return
         p99 = f"  p99 {self._p99():6.2f} ms" if self._p99 is not None else ""
-        self.stream.write("\r" + format_reading(r) + p99 + "   ")
+        detail = f"  {r.detail}" if r.detail else ""  # e.g. 'learning background'
+        self.stream.write("\r" + format_reading(r) + p99 + detail + "   ")
         self.stream.flush()
 
     def close(self) -> None:

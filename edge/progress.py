@@ -36,7 +36,7 @@ def progress(items: Iterable[T], total: int | None = None, desc: str = "", enabl
     iterator
         The items, unchanged and in order.
     """
-    from tqdm import tqdm  # type: ignore[import-untyped]
+    from tqdm import tqdm
 
     bar = tqdm(items, total=total, desc=desc or None, disable=not progress_enabled(enabled), file=sys.stderr,
                mininterval=0.1, dynamic_ncols=True, leave=True)

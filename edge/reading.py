@@ -16,10 +16,15 @@ class Flags(enum.IntFlag):
     NONE = 0
     NO_CONTACT = enum.auto()  #: gate closed: force 0 N, the CNN did not run
     BELOW_RANGE = enum.auto()  #: estimate < 1 N, where the gel barely deforms
-    SATURATED = enum.auto()  #: estimate >= 15 N or gel saturation seen in the frame
+    SATURATED = enum.auto()  #: estimate >= 15 N, gel saturation seen, or a contact beyond the bundle's data
     LATE = enum.auto()  #: the frame missed its deadline (still reported)
     STALE = enum.auto()  #: a newer frame superseded this one before it was processed
-    INVALID_INPUT = enum.auto()  #: wrong shape/dtype, all-dark or all-white frame, NaN
+    INVALID_INPUT = enum.auto()  #: wrong shape/dtype, all-dark/white, uniform, noisy or RGB-order frame, NaN
+    #: the frame no longer fits the gate's background (another unit or session, moved gel or
+    #: camera, sudden LED/exposure step, occlusion): force NaN, the CNN did not run
+    BACKGROUND_MISMATCH = enum.auto()
+    #: the frame lies outside what the bundle's data covered (manifest data_stats): force kept
+    OUT_OF_DISTRIBUTION = enum.auto()
 
     def names(self) -> list[str]:
         """Lower-case flag names, e.g. ['no_contact'], for CSV/JSON output."""

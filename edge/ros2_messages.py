@@ -200,3 +200,10 @@ def compressed_image(sensor: str, timestamp_ns: int, data: bytes, fmt: str, cloc
     """CompressedImage of already-encoded image bytes (``fmt`` 'jpeg' or 'png')."""
     return CompressedImage(header=Header(stamp=_stamp(clock, timestamp_ns), frame_id=sensor), format=fmt,
                            data=bytes(data))
+
+
+def reading_payloads(r: ForceReading, clock: StampClock, topic: str) -> list[tuple[str, str, bytes]]:
+    """(ROS 2 topic, type name, CDR bytes) of a reading: WrenchStamped on ``topic`` and
+    DiagnosticArray on ``topic + '/diagnostics'`` (``topic`` absolute, already checked)."""
+    return [(topic, WRENCH_STAMPED, wrench_message(r, clock).serialize()),
+            (topic + "/diagnostics", DIAGNOSTIC_ARRAY, diagnostic_message(r, clock).serialize())]

@@ -11,21 +11,23 @@ from __future__ import annotations
 import re
 import time
 
+from .errors import SceneError
+
 _TOKEN = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
 
 def ros_topic(name: str, what: str = "ROS 2 topic") -> str:
     """A ROS 2 topic name made absolute ('tactile/force' -> '/tactile/force').
 
-    Raises ValueError naming ``what`` when it is not a valid ROS 2 name (tokens of letters,
-    digits and '_' not starting with a digit, separated by single '/').
+    Raises SceneError (a ValueError) naming ``what`` when it is not a valid ROS 2 name
+    (tokens of letters, digits and '_' not starting with a digit, separated by single '/').
     """
     if not isinstance(name, str) or not name.strip().strip("/"):
-        raise ValueError(f"{what} {name!r}: empty; expected a name such as /tactile/force")
+        raise SceneError(f"{what} {name!r}: empty; expected a name such as /tactile/force")
     tokens = name.strip().lstrip("/").split("/")
     bad = [t for t in tokens if not _TOKEN.match(t)]
     if bad:
-        raise ValueError(f"{what} {name!r}: not a valid ROS 2 name (expected tokens of letters, digits and '_', "
+        raise SceneError(f"{what} {name!r}: not a valid ROS 2 name (expected tokens of letters, digits and '_', "
                          f"not starting with a digit, separated by single '/'; bad part: {bad[0]!r})")
     return "/" + "/".join(tokens)
 

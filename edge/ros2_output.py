@@ -18,7 +18,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from .errors import require
+from .errors import SceneError, require
 from .reading import ForceReading
 from .ros2_names import StampClock, dds_topic, ros_topic
 
@@ -38,12 +38,12 @@ class QosProfile(str, enum.Enum):
         try:
             return cls(value)
         except ValueError:
-            raise ValueError(f"ROS 2 qos {value!r}: expected one of {[q.value for q in cls]}") from None
+            raise SceneError(f"ROS 2 qos {value!r}: expected one of {[q.value for q in cls]}") from None
 
 
 def domain_from_env(domain_id: int | None = None, env: Mapping[str, str] | None = None) -> int:
     """``domain_id`` when given, else ``ROS_DOMAIN_ID`` from the environment, else 0;
-    ValueError naming the source when it is not an integer in 0..232."""
+    SceneError (a ValueError) naming the source when it is not an integer in 0..232."""
     if domain_id is None:
         text = (os.environ if env is None else env).get("ROS_DOMAIN_ID", "").strip()
         if not text:
@@ -51,12 +51,12 @@ def domain_from_env(domain_id: int | None = None, env: Mapping[str, str] | None 
         try:
             domain_id = int(text)
         except ValueError:
-            raise ValueError(f"ROS_DOMAIN_ID={text!r}: expected an integer 0..{MAX_DOMAIN_ID}") from None
+            raise SceneError(f"ROS_DOMAIN_ID={text!r}: expected an integer 0..{MAX_DOMAIN_ID}") from None
         what = "ROS_DOMAIN_ID"
     else:
         what = "ROS 2 domain id"
     if isinstance(domain_id, bool) or not isinstance(domain_id, int) or not 0 <= domain_id <= MAX_DOMAIN_ID:
-        raise ValueError(f"{what} {domain_id!r}: expected an integer 0..{MAX_DOMAIN_ID}")
+        raise SceneError(f"{what} {domain_id!r}: expected an integer 0..{MAX_DOMAIN_ID}")
     return domain_id
 
 
@@ -105,7 +105,8 @@ class Ros2Publisher:
     stamp_clock : StampClock, optional
         Monotonic frame time -> ROS time; default the wall - monotonic offset at start.
 
-    Raises ValueError for a bad topic, qos or domain; MissingExtraError (an ImportError
+    Raises SceneError (a ValueError) for a bad topic, qos or domain, or when Cyclone DDS
+    cannot start (a bad ``CYCLONEDDS_URI``); MissingExtraError (an ImportError
     naming the ``ros2`` extra) when cyclonedds is not installed.
     """
 
@@ -131,8 +132,16 @@ class Ros2Publisher:
 
         self._wrench_message, self._diagnostic_message = wrench_message, diagnostic_message
 
+        from cyclonedds.core import DDSException
+
         q = dds_qos(self.qos)
-        self._participant: Any = DomainParticipant(self.domain_id)
+        try:
+            self._participant: Any = DomainParticipant(self.domain_id)
+        except DDSException as exc:
+            uri = os.environ.get("CYCLONEDDS_URI", "")
+            raise SceneError(f"ROS 2 output on domain {self.domain_id}: Cyclone DDS cannot start ({exc}); "
+                             f"check CYCLONEDDS_URI={uri!r}" if uri else
+                             f"ROS 2 output on domain {self.domain_id}: Cyclone DDS cannot start ({exc})") from None
         self._force: Any = DataWriter(self._participant, Topic(self._participant, self.topics.dds_force, WrenchStamped,
                                                           qos=q), qos=q)
         self._diag: Any = None
@@ -162,7 +171,7 @@ class Ros2Publisher:
         # deletion takes its writers and topics with it (subscribers see them leave).
         participant.__del__()
 
-    def __enter__(self) -> Ros2Publisher:  # noqa: PYI034
+    def __enter__(self) -> Ros2Publisher:
         return self
 
     def __exit__(self, *exc) -> None:

@@ -29,11 +29,13 @@ from __future__ import annotations
 import math
 import threading
 import time
+from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass, field
-from typing import Callable, Iterable, Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
+from .data_stats import DataStatsCheck
 from .errors import FrameError, SourceError
 from .frames import FRAME_SHAPE, FrameSource, TimedFrame, check_frame, exposure_problem
 from .gate import ContactGate, GateResult
@@ -85,7 +87,7 @@ class Sensor:
     name: str
     source: FrameSource
     gate: ContactGate
-    depth: object | None = None
+    depth: Any = None  # edge.depth.DepthStage (process(frame, mask), set_reference(frames))
     alive: bool = True
     error: str = ""
 
@@ -102,6 +104,8 @@ class RuntimeStats:
     late: int = 0
     invalid: int = 0
     source_errors: int = 0
+    background_mismatch: int = 0
+    out_of_distribution: int = 0
     latency_ms: dict[str, dict[str, float]] = field(default_factory=dict)
 
     def as_dict(self) -> dict:
@@ -118,7 +122,8 @@ class LatencyWindow:
 
     def add(self, lat: StageLatency) -> None:
         row = self._buf[self._i]
-        row[0], row[1], row[2], row[3], row[4] = lat.source_ms, lat.gate_ms, lat.depth_ms, lat.inference_ms, lat.total_ms
+        row[0], row[1], row[2] = lat.source_ms, lat.gate_ms, lat.depth_ms
+        row[3], row[4] = lat.inference_ms, lat.total_ms
         self._i = (self._i + 1) % len(self._buf)
         self._n = min(self._n + 1, len(self._buf))
 
@@ -303,7 +308,7 @@ class ForceRuntime:
         self.backend = backend
         nd = getattr(model, "needs_depth", None)
         if nd is None:  # backends that only carry the bundle (OAK)
-            nd = model.bundle.manifest.needs_depth
+            nd = getattr(model, "bundle").manifest.needs_depth  # noqa: B009 - not in the ForceModel protocol
         self.needs_depth = bool(nd)
         if self.needs_depth:
             bundle = getattr(model, "bundle", None)
@@ -341,8 +346,8 @@ class ForceRuntime:
             reads = self._start().take(live)
         else:
             reads = [(s, _read(s.source, self.clock)) for s in live]
-        for s, r in reads:
-            p = self._acquire(s, r, out)
+        for s, rd in reads:
+            p = self._acquire(s, rd, out)
             if p is not None:
                 pending.append(p)
         if pending:
@@ -398,7 +403,8 @@ class ForceRuntime:
         return (b - a) / 1e6
 
     def _reading(self, s: Sensor, tf: TimedFrame | None, flags: Flags, force: float = math.nan,
-                 latency: StageLatency | None = None, detail: str = "", area: int = 0, raw: float = math.nan) -> ForceReading:
+                 latency: StageLatency | None = None, detail: str = "", area: int = 0,
+                 raw: float = math.nan) -> ForceReading:
         return ForceReading(
             sensor=s.name,
             timestamp_ns=tf.timestamp_ns if tf is not None else self.clock(),
@@ -427,7 +433,8 @@ class ForceRuntime:
             return None
         if self.options.report_stale:
             for index, ts in tf.meta.get("superseded", ()):
-                out.append(ForceReading(s.name, ts, index, math.nan, Flags.STALE, detail=f"superseded by frame {tf.index}"))
+                out.append(ForceReading(s.name, ts, index, math.nan, Flags.STALE,
+                                        detail=f"superseded by frame {tf.index}"))
         # Latency counts from when the source had the frame (its arrival stamp); a source
         # that stamps none: from when read() returned it.
         start = tf.arrival_ns if tf.arrival_ns is not None else t1
@@ -442,13 +449,17 @@ class ForceRuntime:
         problem = exposure_problem(frame)
         if problem:
             out.append(self._finish(self._reading(s, tf, Flags.INVALID_INPUT, latency=lat,
-                                                  detail=f"{s.name} frame {tf.index}: {problem} (LEDs off, lens covered?)"), start))
+                                                  detail=f"{s.name} frame {tf.index}: {problem} "
+                                                         "(LEDs off, lens covered?)"), start))
             return None
         g = s.gate.update(frame)
         if s.depth is not None and getattr(s.depth, "needs_reference", False):
             self._depth_reference(s, frame, g)
         t2 = self.clock()
         lat.gate_ms = self._ms(t1, t2)
+        if g.mismatch or g.invalid:  # the gate cannot judge this frame: no force (see _gate_verdict)
+            out.append(self._finish(self._gate_verdict(s, tf, g, lat), start))
+            return None
         if not g.contact:
             detail = "" if g.background_ready else "learning background"
             out.append(self._finish(self._reading(s, tf, Flags.NO_CONTACT, 0.0, lat, detail, g.area_px), start))
@@ -461,7 +472,8 @@ class ForceRuntime:
             if not getattr(res, "ok", False):
                 lat.depth_ms = p.depth_ms
                 out.append(self._finish(self._reading(s, tf, Flags.INVALID_INPUT, latency=lat, area=g.area_px,
-                                                      detail=f"depth stage failed: {getattr(res, 'detail', '')}"), start))
+                                                      detail=f"depth stage failed: {getattr(res, 'detail', '')}"),
+                                         start))
                 return None
             p.depth = res.depth
         return p
@@ -473,7 +485,7 @@ class ForceRuntime:
         if not g.background_ready:
             keep.append(frame.copy())
         if s.gate.background_ready and keep:
-            s.depth.set_reference(keep)  # type: ignore[attr-defined]
+            s.depth.set_reference(keep)
             keep.clear()
 
     def _infer(self, pending: list[_Pending], out: list[ForceReading]) -> None:
@@ -502,9 +514,34 @@ class ForceRuntime:
             r = self._reading(p.sensor, p.tf, flags, force, lat, detail, p.gate.area_px, float(raw))
             out.append(self._finish(r, p.start_ns))
 
-    @staticmethod
-    def _judge(raw: float, g: GateResult, error: str) -> tuple[Flags, float, str]:
-        """Flags and honestly clamped force for one estimate."""
+    def _gate_verdict(self, s: Sensor, tf: TimedFrame, g: GateResult, lat: StageLatency) -> ForceReading:
+        """The reading for a frame the gate cannot judge (force NaN, the CNN not run):
+        ``invalid_input`` (RGB order, uniform, noise burst) or ``background_mismatch`` (the
+        detail says why and how the gate recovers; docs/runtime.md, "Flags")."""
+        if g.invalid:
+            return self._reading(s, tf, Flags.INVALID_INPUT, latency=lat, area=g.area_px,
+                                 detail=f"{s.name} frame {tf.index}: {g.invalid}")
+        wait = s.gate.options.relearn_frames
+        recover = (f"background re-learnt after {wait} stable frames without a contact-like blob, or as soon as a "
+                   "frame fits again" if wait else "call ContactGate.relearn() with the gripper open")
+        return self._reading(s, tf, Flags.BACKGROUND_MISMATCH, latency=lat, area=g.area_px,
+                             detail=f"{s.name}: background mismatch: {g.mismatch} ({recover})")
+
+    def _stats_check(self) -> DataStatsCheck:
+        """The check against the bundle's ``data_stats``, made on first use (one warning and
+        no check when the manifest has none)."""
+        chk = getattr(self, "_data_check", None)
+        if chk is None:
+            bundle = getattr(self.model, "bundle", None)
+            manifest = getattr(bundle, "manifest", None)
+            chk = DataStatsCheck(getattr(manifest, "data_stats", None), str(getattr(bundle, "name", "bundle")))
+            self._data_check = chk
+        return chk
+
+    def _judge(self, raw: float, g: GateResult, error: str) -> tuple[Flags, float, str]:
+        """Flags and honestly clamped force for one estimate: range, saturation (also a
+        contact larger or deeper than the bundle's data covered) and out_of_distribution
+        (the frame's colours outside the bundle's data_stats; the force is kept)."""
         if not math.isfinite(raw):
             return Flags.INVALID_INPUT, math.nan, error or f"model returned {raw}"
         flags, force = Flags.NONE, raw
@@ -518,6 +555,16 @@ class ForceRuntime:
         if g.saturation_seen:
             flags |= Flags.SATURATED
             detail = "gel saturation seen in the frame"
+        chk = self._stats_check()
+        if chk.active:
+            beyond = chk.beyond_coverage(g.area_frac, g.deformation)
+            if beyond:
+                flags |= Flags.SATURATED
+                detail = beyond
+            ood = chk.out_of_distribution(g.thumb)
+            if ood:
+                flags |= Flags.OUT_OF_DISTRIBUTION
+                detail = f"{detail}; {ood}" if detail else ood
         return flags, force, detail
 
     def _count(self, r: ForceReading) -> None:
@@ -534,3 +581,7 @@ class ForceRuntime:
             st.late += 1
         if Flags.INVALID_INPUT in f:
             st.invalid += 1
+        if Flags.BACKGROUND_MISMATCH in f:
+            st.background_mismatch += 1
+        if Flags.OUT_OF_DISTRIBUTION in f:
+            st.out_of_distribution += 1

@@ -44,12 +44,17 @@ import dataclasses
 import json
 import math
 import os
+import sys
 import tempfile
-import tomllib
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from collections.abc import Callable
 from typing import Any
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # Python 3.10: the same parser from PyPI (a core dependency there)
+    import tomli as tomllib
 
 from .errors import AcceleratorUnavailableError, BundleError, SceneError, SourceError
 from .gate import ContactGate, GateOptions
@@ -239,8 +244,11 @@ def _open_digit(s: SensorSpec, clock: Clock):
 def _open_gelsight_mini(s: SensorSpec, clock: Clock):
     from tactile_force.firmware_bridge import gelsight  # USB sensor code, imported only now
 
-    return gelsight.GelSightMiniSource(gelsight.GelSightMiniOptions(sensor=s.device, fps=s.fps or 25.0),
-                                       name=s.name, clock=clock)
+    try:
+        return gelsight.GelSightMiniSource(gelsight.GelSightMiniOptions(sensor=s.device, fps=s.fps or 25.0),
+                                           name=s.name, clock=clock)
+    except SourceError as exc:
+        raise SourceError(f"sensor '{s.name}' (gelsight_mini {s.device}): {exc}") from None
 
 
 def _open_replay(s: SensorSpec, clock: Clock):
@@ -289,7 +297,8 @@ SOURCE_KINDS: dict[str, SourceKind] = {
                        lambda v: not isinstance(v, int) or v >= 0),
          "fps": _fps(25.0)},
         GateOptions.gelsight_mini, _open_gelsight_mini,
-        lambda s: f"GelSight Mini {s.device} via OpenCV V4L2, cropped 1/7 per side, 320x240 portrait, newest frame only"),
+        lambda s: f"GelSight Mini {s.device} via OpenCV V4L2, cropped 1/7 per side, 320x240 portrait, "
+                  "newest frame only"),
     "replay": SourceKind(
         "replay", {"path": Key((str,), None, "a replay folder (images/N.png [+ forces/force_N.txt])",
                                required=True, path=True), "fps": _fps(None)},
@@ -382,7 +391,7 @@ def _sensor(t: Any, i: int, gate_table: dict, base: Path, where: str) -> SensorS
     ws = f"{where} [[sensor]] #{i + 1}"
     t = _table(t, ws, "name, source and the keys of its kind")
     src = t.get("source")
-    if src not in SOURCE_KINDS:
+    if not isinstance(src, str) or src not in SOURCE_KINDS:
         raise _err(ws, f"'source' = {src!r}; expected one of {SOURCES}")
     kind = SOURCE_KINDS[src]
     _check_keys(t, _COMMON_SENSOR_KEYS | set(kind.keys), ws)
@@ -793,7 +802,7 @@ def open_outputs(scene: Scene, p99_ms=None) -> list:
             elif o.kind == "mcap":
                 from .mcap_output import McapWriter  # the 'mcap' extra, imported only now
 
-                sinks.append(McapWriter(path))
+                sinks.append(McapWriter(path, fsync=o.fsync))
             elif o.kind == "ros2":
                 from .ros2_output import Ros2Publisher  # the 'ros2' extra, imported only now
 
@@ -812,7 +821,7 @@ class LearningWatch:
     """Wraps a source whose gate learns its background from the first ``n`` frames: once
     they are read, checks them with a gate of the same options (background = the first of
     them) and calls ``warn`` when some already differ like contact (something touched or
-    moved while the background was learnt). Forwards read/close/stats/name."""
+    moved while the background was learnt). Everything else is the wrapped source's."""
 
     def __init__(self, source, sensor: str, options: GateOptions, warn: Callable[[str], None]) -> None:
         self.source = source
@@ -829,6 +838,11 @@ class LearningWatch:
     @property
     def name(self) -> str:
         return self.source.name
+
+    def __getattr__(self, attr: str):
+        if attr == "source":  # not set yet (copy, pickle): no recursion
+            raise AttributeError(attr)
+        return getattr(self.source, attr)  # reopen(), device, node ... of the wrapped source
 
     def read(self):
         tf = self.source.read()
@@ -911,7 +925,7 @@ def build_scene(scene: Scene, clock: Clock | None = None, warn: Callable[[str], 
             # image, it is set here; learnt from frames, the runtime sets it once learnt.
             if sensor.depth is not None and getattr(sensor.depth, "needs_reference", False) \
                     and sensor.name in backgrounds:
-                sensor.depth.set_reference(backgrounds[sensor.name])  # type: ignore[attr-defined]
+                sensor.depth.set_reference(backgrounds[sensor.name])
         sinks = open_outputs(scene, p99_ms=lambda: runtime.latency()["total"]["p99"])
     except BaseException:
         if runtime is not None:

@@ -17,8 +17,9 @@ import os
 import re
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable, Protocol
+from typing import Protocol
 
 import cv2
 import numpy as np
@@ -349,14 +350,16 @@ class ReplayFolderSource(_FileSequenceSource):
     one warning per bad label file is logged. A frame file that is gone when its turn
     comes (folder deleted or unmounted mid-run) raises SourceError."""
 
-    def __init__(self, path: str | os.PathLike, fps: float | None = None, shape: tuple[int, int, int] | None = FRAME_SHAPE,
-                 name: str = "replay", clock: Clock = time.monotonic_ns, sleep: Callable[[float], None] = time.sleep) -> None:
+    def __init__(self, path: str | os.PathLike, fps: float | None = None,
+                 shape: tuple[int, int, int] | None = FRAME_SHAPE, name: str = "replay",
+                 clock: Clock = time.monotonic_ns, sleep: Callable[[float], None] = time.sleep) -> None:
         self.name = name
         super().__init__(fps, clock, sleep)
         self.path = Path(path)
         self.shape = shape
         if not self.path.is_dir():
-            raise SourceError(f"replay folder {self.path}: not found (expected images/N.png + forces/ or a folder of PNGs)")
+            raise SourceError(f"replay folder {self.path}: not found "
+                              "(expected images/N.png + forces/ or a folder of PNGs)")
         self._dataset: AuthorsDataset | None = None
         if (self.path / "images").is_dir():
             try:
@@ -399,8 +402,9 @@ class ReplayFolderSource(_FileSequenceSource):
 class VideoFileSource(_FileSequenceSource):
     """Frames of a video file (any format OpenCV reads). ``fps=None``: as fast as read."""
 
-    def __init__(self, path: str | os.PathLike, fps: float | None = None, shape: tuple[int, int, int] | None = FRAME_SHAPE,
-                 name: str = "video", clock: Clock = time.monotonic_ns, sleep: Callable[[float], None] = time.sleep) -> None:
+    def __init__(self, path: str | os.PathLike, fps: float | None = None,
+                 shape: tuple[int, int, int] | None = FRAME_SHAPE, name: str = "video",
+                 clock: Clock = time.monotonic_ns, sleep: Callable[[float], None] = time.sleep) -> None:
         self.name = name
         super().__init__(fps, clock, sleep)
         self.path = Path(path)

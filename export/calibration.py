@@ -9,13 +9,12 @@ Two on-disk sources:
 from __future__ import annotations
 
 import os
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterator
 
 import cv2
 import numpy as np
-
 from tactile_force.edge.dataset import AuthorsDataset
 from tactile_force.edge.errors import DatasetError, TactileForceError
 from tactile_force.edge.frames import FRAME_SHAPE
@@ -48,14 +47,14 @@ class CalibrationData:
         for i in range(0, len(self), batch_size):
             yield {k: v[i:i + batch_size] for k, v in self.inputs.items()}
 
-    def subset(self, n: int) -> "CalibrationData":
+    def subset(self, n: int) -> CalibrationData:
         """The first ``n`` frames."""
         return CalibrationData({k: v[:n] for k, v in self.inputs.items()},
                                None if self.forces is None else self.forces[:n], self.source, self.ids[:n])
 
     @classmethod
     def from_path(cls, path: str | os.PathLike, variant: str, limit: int | None = None,
-                  min_frames: int = 1, show_progress: bool = False) -> "CalibrationData":
+                  min_frames: int = 1, show_progress: bool = False) -> CalibrationData:
         """Read frames for ``variant`` from an authors'-layout dataset or a folder of PNGs."""
         variant = check_variant(variant)
         names = VARIANT_INPUTS[variant]
@@ -77,7 +76,7 @@ class CalibrationData:
         return data
 
     @classmethod
-    def _from_dataset(cls, root: Path, names: tuple[str, ...], limit: int | None, show: bool) -> "CalibrationData":
+    def _from_dataset(cls, root: Path, names: tuple[str, ...], limit: int | None, show: bool) -> CalibrationData:
         try:
             ds = AuthorsDataset(root, require_depth="depth" in names)
         except DatasetError as exc:
@@ -102,7 +101,7 @@ class CalibrationData:
         return cls(inputs, np.asarray(forces, dtype=np.float64), f"authors' dataset {root}", [str(i) for i in ids])
 
     @classmethod
-    def _from_pngs(cls, root: Path, names: tuple[str, ...], limit: int | None, show: bool) -> "CalibrationData":
+    def _from_pngs(cls, root: Path, names: tuple[str, ...], limit: int | None, show: bool) -> CalibrationData:
         if len(names) != 1:
             raise CalibrationError(
                 f"{root}: variant needs both RGB frames and depth images; give a dataset in the authors' layout "

@@ -13,9 +13,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import torch
-from torch import nn
-
 from tactile_force.edge.errors import TactileForceError
+from torch import nn
 
 from .zoo import ModelSpec, build_model, check_variant
 
@@ -54,7 +53,8 @@ def load_checkpoint(path: str | os.PathLike) -> Checkpoint:
         raise CheckpointError(f"{p}: not a PyTorch checkpoint ({msg.splitlines()[0][:200]})") from None
     except Exception as exc:  # torch raises RuntimeError, KeyError, EOFError, ... for non-checkpoints
         first = (str(exc).splitlines() or [type(exc).__name__])[0][:200]
-        raise CheckpointError(f"{p}: not a readable PyTorch checkpoint (truncated or another file type: {first})") from None
+        raise CheckpointError(f"{p}: not a readable PyTorch checkpoint "
+                              f"(truncated or another file type: {first})") from None
     meta: dict = {}
     if isinstance(obj, dict) and "state_dict" in obj:
         meta = check_metadata(obj.get(META_KEY), p)

@@ -22,7 +22,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="p99 budget of one batch-2 inference on this host, ms (default 1.0)")
     parser.add_argument("--seed", type=int, default=0, help="seed for splits, training and augmentation")
     parser.add_argument("--ladder", default=None,
-                        help="students as WIDTHxK list, e.g. 0.125x8,0.25x4,0.5x4 (default: 0.125x8,0.25x4,0.5x4,0.25x2)")
+                        help="students as WIDTHxK list, e.g. 0.125x8,0.25x4 "
+                             "(default: 0.125x8,0.25x4,0.5x4,0.25x2)")
     parser.add_argument("--epochs", type=int, default=30, help="training epochs per student (default 30)")
     parser.add_argument("--max-frames", type=int, default=6000, help="unlabelled frames used at most (default 6000)")
     parser.add_argument("--no-augment", action="store_true", help="no LED gain/offset, noise and shift augmentation")
@@ -69,5 +70,6 @@ def main(args: argparse.Namespace) -> int:
         print(f"tactile-force compress: no student fits the {args.budget_ms:g} ms budget on this host; students are "
               f"in {args.out}/work, summary {result.summary_path}", file=sys.stderr)
         return 1
+    assert result.chosen is not None
     print(f"chose {result.chosen['name']} (most accurate within {args.budget_ms:g} ms p99); wrote {result.bundle.path}")
     return 0

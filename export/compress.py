@@ -228,7 +228,8 @@ def load_teacher(path: str | os.PathLike) -> Teacher:
         session = ort_session(b.onnx_path.read_bytes(), threads=max(1, os.cpu_count() or 1))
 
         def run_bundle(frames: np.ndarray) -> np.ndarray:
-            data = CalibrationData({b.manifest.inputs[0].name: frames}, None, "frames", [str(i) for i in range(len(frames))])
+            ids = [str(i) for i in range(len(frames))]
+            data = CalibrationData({b.manifest.inputs[0].name: frames}, None, "frames", ids)
             return run_ort(session, data, batch_size=16)
 
         return Teacher(str(p), "bundle", b.manifest.sha256, f"bundle {b.name} ({b.manifest.precision.value})",
@@ -345,7 +346,8 @@ def compress_model(o: CompressOptions) -> CompressResult:
     val = Frames({"rgb": frames[val_idx]}, t_frames[val_idx])
     topt = TrainOptions(epochs=o.epochs, lr=o.lr, batch=o.batch, seed=o.seed, threads=o.threads, augment=o.augment)
     lab_key = frames_digest(lab_frames, lab_forces) if len(lab_forces) else ""
-    run_key = hashlib.sha256(json.dumps([key, lab_key, o.seed, o.val_share, asdict(topt)], default=str).encode()).hexdigest()[:16]
+    run_key = hashlib.sha256(json.dumps([key, lab_key, o.seed, o.val_share, asdict(topt)],
+                                        default=str).encode()).hexdigest()[:16]
     calib = CalibrationData({"rgb": train.inputs["rgb"][
         np.linspace(0, len(train) - 1, min(o.calibration_frames, len(train))).round().astype(int)]},
         None, f"{len(train)} distillation frames ({frames_desc})", [])

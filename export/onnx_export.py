@@ -26,7 +26,7 @@ from torch import nn
 from tactile_force.edge.bundle import Bundle, write_bundle
 from tactile_force.edge.manifest import (Architecture, InputKind, InputSpec, Manifest, OutputSpec, Parity, Precision,
                                         Provenance, Variant)
-from tactile_force.edge.errors import TactileForceError
+from tactile_force.edge.errors import CheckFailedError, TactileForceError
 
 from .calibration import CalibrationData, random_frames
 from .checkpoint import model_from_checkpoint
@@ -38,7 +38,7 @@ from .zoo import VARIANT_INPUTS, ModelSpec, check_variant
 OUTPUT_NAME = "force_n"
 
 
-class ParityError(TactileForceError):
+class ParityError(CheckFailedError):  # a failed check: the CLI exits 1
     """ONNX Runtime and torch disagree by more than the tolerance; no bundle was written."""
 
 

@@ -101,7 +101,8 @@ def preprocess(net: ForceNet, inputs: dict[str, np.ndarray], chunk: int = 256) -
         for name in net.input_names:
             src = inputs[name]
             n = src.shape[0]
-            parts = [net.pre[name](torch.from_numpy(np.ascontiguousarray(src[i:i + chunk]))) for i in range(0, n, chunk)]
+            parts = [net.pre[name](torch.from_numpy(np.ascontiguousarray(src[i:i + chunk])))
+                     for i in range(0, n, chunk)]
             xs.append(torch.cat(parts) if parts else torch.empty(0))
     return xs
 

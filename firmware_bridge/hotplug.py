@@ -14,8 +14,9 @@ from __future__ import annotations
 import logging
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 from ..edge.errors import SourceError, require
 from ..edge.frames import FrameSource, TimedFrame
@@ -52,15 +53,19 @@ class UdevWatcher:
     def __init__(self, context: Any | None = None, monitor: Any | None = None) -> None:
         if context is None or monitor is None:
             pyudev = require("pyudev", "usb", "USB hot-plug events")
-        if context is None:
-            context = pyudev.Context()
-        if monitor is None:
-            monitor = pyudev.Monitor.from_netlink(context)
-            monitor.filter_by("usb", "usb_device")
-            monitor.filter_by("video4linux")
+        try:
+            if context is None:
+                context = pyudev.Context()
+            if monitor is None:
+                monitor = pyudev.Monitor.from_netlink(context)
+                monitor.filter_by("usb", "usb_device")
+                monitor.filter_by("video4linux")
+            monitor.start()  # subscribe before enumerating: no event between the two is lost
+        except (ImportError, OSError) as exc:  # libudev missing, or no netlink socket (container)
+            raise SourceError(f"USB hot-plug: cannot listen to udev events ({exc}); "
+                              "run without hot-plug, or on a host with udev") from None
         self.context = context
         self.monitor = monitor
-        self.monitor.start()  # subscribe before enumerating: no event between the two is lost
         self._lock = threading.Lock()
         self.present: dict[str, AttachedDevice] = {}
         for info in scan_udev(context):
@@ -104,7 +109,10 @@ class UdevWatcher:
             if info is None or classify_ids(info.vendor_id, info.product_id) is DeviceKind.OTHER:
                 return None
             dev = classify(info)
+            known = self.present.get(parent.sys_path)
             self.present[parent.sys_path] = dev
+            if known is not None and known.info.video_nodes == dev.info.video_nodes:
+                return None  # another interface of a device already announced
             return HotplugEvent("add", dev)
 
     def poll(self, timeout_s: float | None = None) -> HotplugEvent | None:
@@ -133,6 +141,8 @@ class UdevWatcher:
         """Block until the device of ``kind`` with ``serial`` is attached and streamable
         (at once when it already is); None after ``timeout_s`` seconds or when ``stop`` is set."""
         end = None if timeout_s is None else time.monotonic() + timeout_s
+        while self.poll(0.0) is not None:  # take in what already happened (a removal not yet seen)
+            pass
         while True:
             dev = self.find(kind, serial)
             if dev is not None:
@@ -248,3 +258,36 @@ class HotplugSource(FrameSource):
         if inner is not None:
             inner.close()
         self.state = "closed"
+
+
+def digit_hotplug_source(options: Any, watcher: UdevWatcher | None = None, *,
+                         replug_timeout_s: float | None = None, name: str | None = None,
+                         **digit_kwargs: Any) -> HotplugSource:
+    """A DIGIT that survives unplug/replug: :class:`HotplugSource` over
+    :class:`~tactile_force.firmware_bridge.digit.DigitSource` opened at the DIGIT's video node.
+
+    ``options`` is a DigitOptions whose ``sensor`` is a serial or an index among attached
+    DIGITs (resolved to the serial once, here); the DigitSource's own reconnect loop is
+    turned off (the udev events take its place). ``digit_kwargs`` go to DigitSource
+    (open_capture, sys_root, dev_root in tests).
+    """
+    from dataclasses import replace
+
+    from .digit import DigitSource
+
+    watcher = watcher or UdevWatcher()
+    sensor = options.sensor
+    if isinstance(sensor, int) or (isinstance(sensor, str) and sensor.isdigit()):
+        digits = sorted((d for d in watcher.present.values() if d.kind is DeviceKind.DIGIT),
+                        key=lambda d: d.serial or "")
+        if not 0 <= int(sensor) < len(digits):
+            raise SourceError(f"DIGIT index {sensor}: {len(digits)} DIGIT(s) attached")
+        sensor = digits[int(sensor)].serial
+    if not isinstance(sensor, str) or sensor.startswith("/dev/") or not sensor:
+        raise SourceError(f"DIGIT {options.sensor!r}: hot-plug follows a DIGIT by serial (D12345) or index, "
+                          "not by /dev path (the node changes on replug)")
+
+    def open_digit(dev: AttachedDevice) -> FrameSource:
+        return DigitSource(replace(options, sensor=dev.video_node, reconnect_attempts=0), **digit_kwargs)
+
+    return HotplugSource(DeviceKind.DIGIT, sensor, open_digit, watcher, replug_timeout_s, name or sensor)

@@ -65,7 +65,7 @@ class RecordResult:
     skipped: dict[str, int] = field(default_factory=dict)
     removed_unlabelled: list[int] = field(default_factory=list)
     stopped_by: str = ""
-    repairs: list["RepairReport"] = field(default_factory=list)
+    repairs: list[RepairReport] = field(default_factory=list)
 
     @property
     def write_failed(self) -> bool:
@@ -163,7 +163,7 @@ class _StopFlag:
         self._old: dict[int, object] = {}
         self._enabled = enabled and threading.current_thread() is threading.main_thread()
 
-    def __enter__(self) -> "_StopFlag":
+    def __enter__(self) -> _StopFlag:
         if self._enabled:
             for sig in (signal.SIGINT, signal.SIGTERM):
                 self._old[sig] = signal.signal(sig, self._handle)

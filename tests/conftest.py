@@ -10,6 +10,11 @@ import pytest
 REPO = Path(__file__).resolve().parents[1]
 SHARED_DATA = Path(os.environ.get("TACTILE_FORCE_SHARED_DATA", REPO.parent / "shared" / "data"))
 
+#: Cyclone DDS on the loopback interface only (lo, no multicast, peer 127.0.0.1), set before any
+#: DDS participant exists in the test process; .ci/run exports the same file.
+CYCLONEDDS_LOOPBACK = REPO / "tests" / "cyclonedds_loopback.xml"
+os.environ["CYCLONEDDS_URI"] = CYCLONEDDS_LOOPBACK.as_uri()
+
 
 def shared_data(*parts: str) -> Path:
     """Path under ../shared/data; skips the test with a clear reason when it is absent."""

@@ -4,8 +4,18 @@ exact DST-I Poisson solve, the paper's 8-bit depth image, and the max-deformatio
 Conventions: see gradients.py and docs/depth.md."""
 
 from .baseline import MaxDeformationBaseline, max_deformation
-from .calibration import (AngleError, Circle, LUTOptions, NormalLUT, Press, cap_depth_px, detect_press_circle,
-                          evaluate_lut, fit_lut, sphere_normals)
+from .calibration import (
+    AngleError,
+    Circle,
+    LUTOptions,
+    NormalLUT,
+    Press,
+    cap_depth_px,
+    detect_press_circle,
+    evaluate_lut,
+    fit_lut,
+    sphere_normals,
+)
 from .gradients import GradientGuards, normals_to_gradients
 from .normals import MappingError, PaperMLP, decode_paper_normals
 from .poisson import PoissonSolver, forward_gradients

@@ -27,7 +27,7 @@ class MaxDeformationBaseline:
     degree: int = 3
 
     @classmethod
-    def fit(cls, depths, forces_n, degree: int = 3) -> "MaxDeformationBaseline":
+    def fit(cls, depths, forces_n, degree: int = 3) -> MaxDeformationBaseline:
         """Least-squares fit on depth images and their forces (N); needs > degree frames."""
         x = np.array([max_deformation(d) for d in depths], dtype=np.float64)
         y = np.asarray(forces_n, dtype=np.float64)
@@ -49,7 +49,7 @@ class MaxDeformationBaseline:
         return p
 
     @classmethod
-    def load(cls, path: str | os.PathLike) -> "MaxDeformationBaseline":
+    def load(cls, path: str | os.PathLike) -> MaxDeformationBaseline:
         rec = json.loads(Path(path).read_text())
         if rec.get("model") != "max_deformation_poly":
             raise ValueError(f"{path}: not a max-deformation baseline (model={rec.get('model')!r})")

@@ -189,7 +189,7 @@ class NormalLUT:
         return p
 
     @classmethod
-    def from_arrays(cls, z: dict[str, np.ndarray], source: str = "<arrays>") -> "NormalLUT":
+    def from_arrays(cls, z: dict[str, np.ndarray], source: str = "<arrays>") -> NormalLUT:
         if str(z.get("format", "")) != LUT_FORMAT:
             raise MappingError(f"{source}: not a calibrate-depth file (format {z.get('format')!r}, expected {LUT_FORMAT!r})")
         if int(z["version"]) != LUT_VERSION:
@@ -201,7 +201,7 @@ class NormalLUT:
             raise MappingError(f"{source}: calibration file lacks {exc}") from None
 
     @classmethod
-    def load(cls, path: str | os.PathLike) -> "NormalLUT":
+    def load(cls, path: str | os.PathLike) -> NormalLUT:
         return cls.from_arrays(_load_npz(path), str(path))
 
 

@@ -17,6 +17,19 @@ import numpy as np
 from ..errors import DatasetError
 from ..progress import progress
 from .calibration import Circle, LUTOptions, Press, detect_press_circle, evaluate_lut, fit_lut
+from .overlay import PressRole, PressTile, circle_sheet, write_image
+
+
+def overlay_path(output: str, overlay: str | None) -> Path:
+    """Where the circle image goes: ``overlay`` when given, else next to the output
+    (``cal.npz`` -> ``cal_circles.png``). DatasetError for an image suffix OpenCV cannot write."""
+    if overlay:
+        p = Path(overlay)
+        if p.suffix.lower() not in (".png", ".jpg", ".jpeg"):
+            raise DatasetError(f"--overlay {overlay}: expected a .png or .jpg file name")
+        return p
+    out = Path(output)
+    return out.with_name(out.stem + "_circles.png")
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -29,6 +42,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--bins", type=int, default=32)
     parser.add_argument("--bin-width", type=float, default=6.0, help="colour levels per LUT bin")
     parser.add_argument("-o", "--output", required=True, help="calibration file to write (.npz)")
+    parser.add_argument("--overlay", metavar="PATH",
+                        help="image of the presses with the detected ball circles, to check them "
+                             "(.png or .jpg; default: OUTPUT with the suffix _circles.png)")
 
 
 def _read(path: Path) -> np.ndarray:
@@ -73,23 +89,34 @@ def load_presses(src: str, background: str | None) -> tuple[list[Press], np.ndar
 
 
 def main(args: argparse.Namespace) -> int:
+    overlay = overlay_path(args.output, args.overlay)
     presses, bg = load_presses(args.presses, args.background)
     ball_px = args.ball_radius_mm * args.px_per_mm
     found: list[Press] = []
+    skipped: list[Press] = []
     for pr in progress(presses, desc="detecting circles"):
         c = pr.circle
         if c is None or args.detect:
             c = detect_press_circle(pr.frame, bg)
         if c is None:
             print(f"  {pr.name}: no contact circle found, skipped")
+            skipped.append(pr)
             continue
         found.append(Press(pr.frame, c, pr.name))
-    if len(found) < 2:
-        raise DatasetError(f"only {len(found)} presses with a circle; need at least 2 (one to fit, one to test)")
     n_test = max(1, int(round(len(found) * args.holdout)))
     # Every k-th press is held out so train and test cover the gel alike.
     step = len(found) / n_test
     test_i = {int(i * step + step / 2) for i in range(n_test)}
+    # The circle image is written first, also when too few circles were found: it shows why.
+    tiles = [PressTile(p.frame, p.circle, p.name, PressRole.HELDOUT if i in test_i else PressRole.FIT)
+             for i, p in enumerate(found)] + [PressTile(p.frame, None, p.name, PressRole.SKIPPED) for p in skipped]
+    order = {p.name: k for k, p in enumerate(presses)}
+    tiles.sort(key=lambda t: order.get(t.name, 0))
+    write_image(overlay, circle_sheet(tiles))
+    print(f"  circles drawn on the presses: {overlay} (green: fit, orange: held out, red cross: no circle)")
+    if len(found) < 2:
+        raise DatasetError(f"only {len(found)} presses with a circle; need at least 2 (one to fit, one to test); "
+                           f"see {overlay}")
     train = [p for i, p in enumerate(found) if i not in test_i]
     test = [p for i, p in enumerate(found) if i in test_i]
     lut = fit_lut(train, bg, ball_px, LUTOptions(bins=args.bins, bin_width=args.bin_width))
@@ -97,13 +124,17 @@ def main(args: argparse.Namespace) -> int:
     err_test = evaluate_lut(lut, test, ball_px)
     lut.px_per_mm = args.px_per_mm
     lut.ball_radius_mm = args.ball_radius_mm
+    def angles(e) -> dict[str, float]:
+        return {"mean": e.mean_deg, "median": e.median_deg, "p90": e.p90_deg}
+
     lut.report = {"train_presses": len(train), "test_presses": len(test), "ball_radius_px": ball_px,
-                  "train_angle_deg": {"mean": err_train.mean_deg, "median": err_train.median_deg, "p90": err_train.p90_deg},
-                  "heldout_angle_deg": {"mean": err_test.mean_deg, "median": err_test.median_deg, "p90": err_test.p90_deg}}
+                  "train_angle_deg": angles(err_train), "heldout_angle_deg": angles(err_test)}
     out = lut.save(args.output)
-    print(f"calibrate-depth: {len(found)}/{len(presses)} presses with a circle; fit on {len(train)}, held out {len(test)}")
-    print(f"  normal angle error, fit presses:       mean {err_train.mean_deg:5.2f} deg  median {err_train.median_deg:5.2f}  p90 {err_train.p90_deg:5.2f}")
-    print(f"  normal angle error, held-out presses:  mean {err_test.mean_deg:5.2f} deg  median {err_test.median_deg:5.2f}  p90 {err_test.p90_deg:5.2f}")
+    print(f"calibrate-depth: {len(found)}/{len(presses)} presses with a circle; "
+          f"fit on {len(train)}, held out {len(test)}")
+    for label, e in (("fit presses:      ", err_train), ("held-out presses: ", err_test)):
+        print(f"  normal angle error, {label}  mean {e.mean_deg:5.2f} deg  median {e.median_deg:5.2f}  "
+              f"p90 {e.p90_deg:5.2f}")
     print(f"  wrote {out}")
     print(json.dumps(lut.report))
     return 0

@@ -32,7 +32,8 @@ def _load_npz(path: str | os.PathLike) -> dict[str, np.ndarray]:
         with np.load(p, allow_pickle=False) as z:
             return {k: z[k] for k in z.files}
     except Exception as exc:  # zipfile/pickle/ValueError: truncated or not an npz
-        raise MappingError(f"{p}: cannot read as .npz ({exc.__class__.__name__}: {exc}); file empty or truncated?") from None
+        raise MappingError(f"{p}: cannot read as .npz ({exc.__class__.__name__}: {exc}); "
+                           "file empty or truncated?") from None
 
 
 def is_paper_mlp(arrays: dict[str, np.ndarray]) -> bool:
@@ -54,16 +55,26 @@ class PaperMLP:
             if w is None or b is None:
                 raise MappingError(f"{source}: missing {name} weight/bias; expected fc1..fc4 of a 5-32-32-32-3 MLP")
             if w.shape != shape or b.shape != (shape[0],):
-                raise MappingError(f"{source}: {name} weight {w.shape} bias {b.shape}; expected {shape} and ({shape[0]},)")
+                raise MappingError(f"{source}: {name} weight {w.shape} bias {b.shape}; "
+                                   f"expected {shape} and ({shape[0]},)")
             if not (np.all(np.isfinite(w)) and np.all(np.isfinite(b))):
                 raise MappingError(f"{source}: {name} holds NaN or inf (corrupted weights)")
             # Stored transposed so a row-major (N, in) batch multiplies without copies.
             self.w.append(np.ascontiguousarray(w.T, dtype=np.float32))
             self.b.append(b.astype(np.float32))
         self._grid: tuple[int, int] | None = None
+        # Fast form, same function: fc3 and fc4 have no activation between them, so they fold
+        # into one 32 -> 3 layer; fc1's position part (col/240, row/320) is a per-pixel table
+        # made once per frame size, its colour part a 3 -> 32 product with 1/255 folded in.
+        w1 = self.w[0].astype(np.float64)
+        self._w_colour = np.ascontiguousarray((w1[2:][::-1] / 255.0).astype(np.float32))  # BGR rows
+        self._w_pos = w1[:2]
+        self._w34 = np.ascontiguousarray((self.w[2].astype(np.float64) @ self.w[3]).astype(np.float32))
+        self._b34 = (self.b[2].astype(np.float64) @ self.w[3] + self.b[3]).astype(np.float32)
+        self._pos: np.ndarray | None = None
 
     @classmethod
-    def load(cls, path: str | os.PathLike) -> "PaperMLP":
+    def load(cls, path: str | os.PathLike) -> PaperMLP:
         arrays = _load_npz(path)
         if not is_paper_mlp(arrays):
             raise MappingError(f"{path}: keys {sorted(arrays)[:6]}...; expected the paper MLP (fc1.weight ...)")
@@ -74,34 +85,47 @@ class PaperMLP:
             h, w = shape
             rows, cols = np.mgrid[0:h, 0:w]
             # The authors normalise by the DIGIT size 240 x 320 whatever the frame.
-            self._xy = np.stack([cols.ravel() / 240.0, rows.ravel() / 320.0], axis=1).astype(np.float32)
+            xy = np.stack([cols.ravel() / 240.0, rows.ravel() / 320.0], axis=1)
+            self._xy = xy.astype(np.float32)
+            self._pos = (xy @ self._w_pos + self.b[0]).astype(np.float32)  # (H*W, 32): fc1's position part
             self._grid = shape
 
     def encoded(self, frame: np.ndarray, index: np.ndarray | None = None) -> np.ndarray:
         """frame: H x W x 3 uint8 BGR; index: flat pixel indices (None = all).
-        Returns (N, 3) float32 (n + 1)/2 encoded normals, digit-depth convention."""
+        Returns (N, 3) float32 (n + 1)/2 encoded normals, digit-depth convention. Pixels
+        are independent: ``encoded(f, idx) == encoded(f)[idx]`` (to float32 rounding)."""
+        h, w = frame.shape[:2]
+        self._coords((h, w))
+        bgr = frame.reshape(-1, 3)
+        pos = self._pos
+        assert pos is not None  # made by _coords
+        if index is not None:
+            bgr = bgr[index]
+            pos = pos[index]
+        a = bgr.astype(np.float32) @ self._w_colour
+        a += pos
+        np.maximum(a, 0, out=a)
+        a = a @ self.w[1]
+        a += self.b[1]
+        np.maximum(a, 0, out=a)
+        out = a @ self._w34
+        out += self._b34
+        return out
+
+    def encoded_reference(self, frame: np.ndarray, index: np.ndarray | None = None) -> np.ndarray:
+        """The four layers one by one, as the authors run them (float32): what
+        :meth:`encoded` is tested against."""
         h, w = frame.shape[:2]
         self._coords((h, w))
         bgr = frame.reshape(-1, 3)
         xy = self._xy
         if index is not None:
-            bgr = bgr[index]
-            xy = xy[index]
-        x = np.empty((bgr.shape[0], 5), dtype=np.float32)
-        x[:, :2] = xy
-        x[:, 2:] = bgr[:, ::-1]
-        x[:, 2:] *= 1.0 / 255.0
-        a = x @ self.w[0]
-        a += self.b[0]
-        np.maximum(a, 0, out=a)
-        a = a @ self.w[1]
-        a += self.b[1]
-        np.maximum(a, 0, out=a)
-        a = a @ self.w[2]
-        a += self.b[2]
-        a = a @ self.w[3]
-        a += self.b[3]
-        return a
+            bgr, xy = bgr[index], xy[index]
+        x = np.concatenate([xy, bgr[:, ::-1].astype(np.float32) / 255.0], axis=1)
+        a = np.maximum(x @ self.w[0] + self.b[0], 0)
+        a = np.maximum(a @ self.w[1] + self.b[1], 0)
+        a = a @ self.w[2] + self.b[2]
+        return a @ self.w[3] + self.b[3]
 
 
 def decode_paper_normals(encoded: np.ndarray) -> np.ndarray:

@@ -38,7 +38,13 @@ class DepthOptions:
     paper_scale: paper-mode levels per metre of the authors' map (their x255 times 1000);
     gel_width_m / gel_height_m: the authors' gel size for their gradient units (AUROVA DIGIT);
     guards: n_z floor and slope clamp; saturated_fraction: share of mask pixels with a
-    channel at 255 above which the frame is flagged 'saturated'; solver_dtype: float32/64.
+    channel at 255 above which the frame is flagged 'saturated'; solver_dtype: float32/64;
+    mapping_step: exact mode evaluates the colour->normal mapping on every pixel of the
+    mask (1) or on every 2nd row and column of it (2: a quarter of the work, each pixel
+    takes the value of the evaluated pixel at its even row and column; the error against
+    1 is in docs/benchmarks/latency.md); paper_dilation_px: paper mode evaluates the MLP
+    only inside the contact mask dilated by this many pixels, elsewhere the gradients are
+    the reference frames' (None: on every pixel, as the authors did).
     """
 
     mapping: str | os.PathLike
@@ -50,10 +56,18 @@ class DepthOptions:
     guards: GradientGuards = field(default_factory=GradientGuards)
     saturated_fraction: float = 0.5
     solver_dtype: str = "float32"
+    mapping_step: int = 1
+    paper_dilation_px: int | None = 16
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
             raise ValueError(f"DepthOptions.mode={self.mode!r}: expected one of {MODES}")
+        if self.mapping_step not in (1, 2):
+            raise ValueError(f"DepthOptions.mapping_step={self.mapping_step!r}: expected 1 (every pixel) or 2")
+        if self.paper_dilation_px is not None and not (isinstance(self.paper_dilation_px, int)
+                                                       and self.paper_dilation_px >= 0):
+            raise ValueError(f"DepthOptions.paper_dilation_px={self.paper_dilation_px!r}: expected pixels >= 0 "
+                             "or None (evaluate everywhere)")
         for name in ("levels_per_px", "paper_scale", "gel_width_m", "gel_height_m"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
@@ -104,6 +118,16 @@ class DepthStage:
         self._depth = np.zeros((h, w, 1), dtype=np.uint8)
         self._full_mask = np.ones((h, w), dtype=bool)
         self.reference: np.ndarray | None = None
+        self._ref_gx: np.ndarray | None = None  # paper mode: mean reference gradients (outside the mask)
+        self._ref_gy: np.ndarray | None = None
+        rows, cols = np.mgrid[0:h, 0:w]
+        self._anchor = ((rows // 2 * 2) * w + cols // 2 * 2).ravel()  # mapping_step 2: the evaluated pixel
+        self._dilate = None
+        if options.paper_dilation_px:
+            import cv2
+
+            k = 2 * options.paper_dilation_px + 1
+            self._dilate = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))
 
     # ------------------------------------------------------------------ reference
     @property
@@ -117,15 +141,21 @@ class DepthStage:
         if self.options.mode != "paper":
             raise ValueError("set_reference: only paper mode uses a zero-depth reference")
         acc = np.zeros(FRAME_SHAPE[:2], dtype=np.float64)
+        agx = np.zeros(FRAME_SHAPE[:2], dtype=np.float64)
+        agy = np.zeros(FRAME_SHAPE[:2], dtype=np.float64)
         n = 0
         for f in frames:
             f = getattr(f, "frame", f)
             if self._frame_problem(f) is None:
                 acc += self._paper_distance(f)
+                agx += self._gx
+                agy += self._gy
                 n += 1
         if n == 0:
             raise ValueError("set_reference: no usable frame (expected 320x240x3 uint8 BGR, not all-dark/white)")
         self.reference = (acc / n).astype(self._height.dtype)
+        self._ref_gx = (agx / n).astype(np.float32)
+        self._ref_gy = (agy / n).astype(np.float32)
         return n
 
     # ------------------------------------------------------------------ per frame
@@ -152,6 +182,13 @@ class DepthStage:
             return None, "mask: holds NaN/inf; expected uint8 0/255 or bool"
         return m > 0, ""
 
+    def _saturated_px(self, frame: np.ndarray, m: np.ndarray, contact_px: int) -> int:
+        """Mask pixels with a channel at 255 (two SIMD passes instead of a gather of the mask)."""
+        import cv2
+
+        below = cv2.inRange(frame, (0, 0, 0), (254, 254, 254))  # 255 where no channel is at 255
+        return contact_px - cv2.countNonZero(cv2.bitwise_and(below, below, mask=np.ascontiguousarray(m).view(np.uint8)))
+
     def _fail(self, detail: str, contact_px: int = 0) -> DepthResult:
         return DepthResult(depth=np.zeros_like(self._depth), ok=False, detail=detail, contact_px=contact_px)
 
@@ -168,7 +205,7 @@ class DepthStage:
             idx = np.flatnonzero(m)
             if idx.size == 0:
                 return self._fail("empty mask: no contact to reconstruct")
-            sat = np.count_nonzero(frame.reshape(-1, 3)[idx].max(axis=1) >= 255)
+            sat = self._saturated_px(frame, m, idx.size)
             if sat > self.options.saturated_fraction * idx.size:
                 return self._fail(f"saturated: {sat}/{idx.size} contact pixels at 255", int(idx.size))
             if self.options.mode == "paper":
@@ -182,15 +219,21 @@ class DepthStage:
         gx.fill(0.0)
         gy.fill(0.0)
         clamped = 0
+        where = idx
+        if self.options.mapping_step == 2:  # evaluate at the even row/column pixel of each 2x2 cell
+            anchors, back = np.unique(self._anchor[idx], return_inverse=True)
+            where = anchors
         if self.lut is not None:
-            g = self._glut[self.lut.index(frame, idx)]
-            gx.ravel()[idx] = g[:, 0]
-            gy.ravel()[idx] = g[:, 1]
+            g = self._glut[self.lut.index(frame, where)]
+            vx, vy = g[:, 0], g[:, 1]
         else:
-            n = decode_paper_normals(self.mlp.encoded(frame, idx))
+            assert self.mlp is not None  # a stage has a LUT or the MLP
+            n = decode_paper_normals(self.mlp.encoded(frame, where))
             vx, vy, clamped = normals_to_gradients(n, self.options.guards)
-            gx.ravel()[idx] = vx
-            gy.ravel()[idx] = vy
+        if where is not idx:
+            vx, vy = vx[back], vy[back]
+        gx.ravel()[idx] = vx
+        gy.ravel()[idx] = vy
         h = self.solver.solve(gx, gy, out=self._height)
         if not np.isfinite(h).all():  # cannot happen with guarded gradients; kept as a guard
             return self._fail("non-finite height after integration", int(idx.size))
@@ -198,24 +241,44 @@ class DepthStage:
         detail = f"{clamped} gradient values clamped" if clamped else ""
         return DepthResult(self._depth.copy(), True, detail, h, int(idx.size), clamped)
 
-    def _paper_distance(self, frame: np.ndarray) -> np.ndarray:
-        """The authors' integrated map (metres; lower = pressed toward the camera)."""
-        o = self.mlp.encoded(frame).reshape(FRAME_SHAPE)
+    def _paper_distance(self, frame: np.ndarray, index: np.ndarray | None = None) -> np.ndarray:
+        """The authors' integrated map (metres; lower = pressed toward the camera). index:
+        flat pixels where the MLP runs (None: every pixel); elsewhere the gradients are the
+        reference frames' mean."""
         h, w = FRAME_SHAPE[:2]
-        nz = np.maximum(o[..., 2], 0.1 / 255.0)  # their EPS = 0.1 on outputs scaled x255
+        assert self.mlp is not None  # paper mode needs the MLP (checked at construction)
+        o = self.mlp.encoded(frame, index)
+        nz = np.maximum(o[:, 2], 0.1 / 255.0)  # their EPS = 0.1 on outputs scaled x255
+        vx = np.divide(o[:, 0], nz)
+        vx *= self.options.gel_width_m / w
+        vy = np.divide(o[:, 1], nz)
+        vy *= -self.options.gel_height_m / h
+        for v in (vx, vy):
+            v[~np.isfinite(v)] = 0.0
         gx, gy = self._gx, self._gy
-        np.divide(o[..., 0], nz, out=gx)
-        gx *= self.options.gel_width_m / w
-        np.divide(o[..., 1], nz, out=gy)
-        gy *= -self.options.gel_height_m / h
-        for g in (gx, gy):
-            g[~np.isfinite(g)] = 0.0
+        if index is None:
+            gx.ravel()[:] = vx
+            gy.ravel()[:] = vy
+        else:
+            gx[...] = self._ref_gx
+            gy[...] = self._ref_gy
+            gx.ravel()[index] = vx
+            gy.ravel()[index] = vy
         return self.solver.solve(gx, gy, out=self._height)
+
+    def paper_index(self, m: np.ndarray) -> np.ndarray | None:
+        """Flat pixels where paper mode runs the MLP: the mask dilated by
+        ``paper_dilation_px`` (None: every pixel)."""
+        if self._dilate is None:
+            return None
+        import cv2
+
+        return np.flatnonzero(cv2.dilate(m.view(np.uint8), self._dilate))
 
     def _process_paper(self, frame: np.ndarray, m: np.ndarray, contact_px: int) -> DepthResult:
         if self.reference is None:
             return self._fail("paper mode: no zero-depth reference; call set_reference(frames) first", contact_px)
-        d = self._paper_distance(frame)
+        d = self._paper_distance(frame, self.paper_index(m))
         if not np.isfinite(d).all():
             return self._fail("non-finite depth after integration", contact_px)
         paper_depth_image(d, self.reference, m, self.options.paper_scale, self._depth)

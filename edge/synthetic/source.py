@@ -69,7 +69,7 @@ class VirtualDigitSource(FrameSource):
         self._i = 0
         self._t0: int | None = None
         self._ahead = int(render_ahead)
-        self._queue: "queue.Queue[TimedFrame | None] | None" = None
+        self._queue: queue.Queue[TimedFrame | None] | None = None
         self._stop: threading.Event | None = None
         self._thread: threading.Thread | None = None
 
@@ -113,7 +113,7 @@ class VirtualDigitSource(FrameSource):
         return TimedFrame(frame=out.frame, timestamp_ns=ts, index=i, truth_n=float(force), meta=meta,
                           arrival_ns=time.monotonic_ns())
 
-    def _render_loop(self, q: "queue.Queue[TimedFrame | None]", stop: threading.Event) -> None:
+    def _render_loop(self, q: queue.Queue[TimedFrame | None], stop: threading.Event) -> None:
         items = (self._render(i) for i in range(self._i, len(self._plan)))
         for item in itertools.chain(items, [None]):  # rendered lazily; None: the end of the stream
             while not stop.is_set():

@@ -4,7 +4,6 @@ descriptors and fake sysfs trees, and `tactile-force devices` reports it."""
 import json
 
 import pytest
-
 from tactile_force.edge.cli import main as cli_main
 from tactile_force.edge.errors import SourceError
 from tactile_force.firmware_bridge import DeviceKind, bcd_to_revision, discover, find_digit, udev_rules_path
@@ -119,3 +118,24 @@ def test_devices_command_lists_problems(tree, capsys):
     assert cli_main(["devices", "--json", "--sys-root", str(tree[0]), "--dev-root", str(tree[1])]) == 0
     data = json.loads(capsys.readouterr().out)
     assert sorted(d["kind"] for d in data["devices"]) == ["digit", "digit", "digit-programming", "gelsight-mini"]
+
+
+def test_default_discovery_prefers_udev_and_falls_back_to_sysfs(monkeypatch, tmp_path):
+    import sys
+
+    from tactile_force.firmware_bridge import discovery
+
+    from .fake_udev import FakeCameraDevice, FakeUdevContext
+
+    ctx = FakeUdevContext()
+    ctx.plug(FakeCameraDevice("1-2", 0x2833, 0x0209, "D20001", "DIGIT", videos=[2, 3]), announce=False)
+    monkeypatch.setattr(discovery, "udev_context", lambda: ctx)
+    result = discover()
+    assert result.method == "udev" and [d.serial for d in result.devices] == ["D20001"]
+    tree = make_fake_sysfs(tmp_path, [FakeSysfsDevice("1-2", 0x2833, 0x0209, 0x0200, "D20001", videos=[(2, 0)])])
+    assert discover(*tree).method == "sysfs"  # explicit roots: sysfs, not this host's libudev
+    monkeypatch.setattr(discovery, "udev_context", lambda: None)  # libudev absent
+    assert discover().method in ("sysfs", "pyusb", "none")
+    monkeypatch.undo()
+    monkeypatch.setitem(sys.modules, "pyudev", None)  # pyudev not installed
+    assert discovery.udev_context() is None

@@ -114,6 +114,6 @@ def test_unlabelled_frame_is_reported_by_the_reader_until_repaired(aurova_dir, t
 def test_record_command_without_the_sensor_fails_clearly(tmp_path, capsys):
     from tactile_force.edge.cli import main
 
-    assert main(["record", "--sensor", "D99999", "--out", str(tmp_path / "ds")]) == 1
+    assert main(["record", "--sensor", "D99999", "--out", str(tmp_path / "ds")]) == 2  # bad input: exit 2
     assert "DIGIT 'D99999' not attached" in capsys.readouterr().err
     assert not (tmp_path / "ds").exists()

@@ -70,4 +70,43 @@ def test_cli_writes_a_loadable_calibration(tmp_path, capsys):
 def test_cli_reports_missing_background(tmp_path, capsys):
     rc = cli_main(["calibrate-depth", str(shared_data("fots_digit", "ball_presses")), "--ball-radius-mm", "2.35",
                    "--px-per-mm", "19.58", "-o", str(tmp_path / "x.npz")])
-    assert rc == 1 and "background" in capsys.readouterr().err
+    assert rc == 2 and "background" in capsys.readouterr().err  # bad input: exit 2
+
+
+def test_cli_writes_the_circle_image(tmp_path, capsys):
+    """The image next to the output shows every press with its circle where it was found."""
+    import cv2
+
+    from tactile_force.edge.depth.cli import load_presses
+
+    src = shared_data("gelsight_mini_ball_presses.npz")
+    out = tmp_path / "cal" / "gs.npz"
+    rc = cli_main(["calibrate-depth", str(src), "--ball-radius-mm", "2.0", "--px-per-mm", str(1 / MM_PER_PX),
+                   "--detect", "-o", str(out)])
+    assert rc == 0
+    img_path = tmp_path / "cal" / "gs_circles.png"
+    assert str(img_path) in capsys.readouterr().out
+    img = cv2.imread(str(img_path))
+    presses, bg = load_presses(str(src), None)
+    cols = min(6, len(presses))
+    rows = -(-len(presses) // cols)
+    tile_h = round(bg.shape[0] * 240 / bg.shape[1])
+    assert img.shape == (rows * (tile_h + 4) - 4, cols * (240 + 4) - 4, 3)
+    # the first press's circle is drawn in green (fit) or orange (held out) on its ring
+    c = detect_press_circle(presses[0].frame, bg)
+    s = 240 / bg.shape[1]
+    ring = [img[round(c.cy * s + c.r * s * np.sin(a)), round(c.cx * s + c.r * s * np.cos(a))]
+            for a in np.linspace(0, 2 * np.pi, 16, endpoint=False)]
+    green_or_orange = [(p[1] > 120 and p[2] < 80) or (p[2] > 200 and 100 < p[1] < 180 and p[0] < 60) for p in ring]
+    assert sum(green_or_orange) >= 12, ring
+
+
+def test_cli_overlay_path_and_bad_suffix(tmp_path, capsys):
+    src = str(shared_data("gelsight_mini_ball_presses.npz"))
+    over = tmp_path / "check" / "circles.jpg"
+    rc = cli_main(["calibrate-depth", src, "--ball-radius-mm", "2.0", "--px-per-mm", str(1 / MM_PER_PX),
+                   "-o", str(tmp_path / "x.npz"), "--overlay", str(over)])
+    assert rc == 0 and over.is_file() and not (tmp_path / "x_circles.png").exists()
+    rc = cli_main(["calibrate-depth", src, "--ball-radius-mm", "2.0", "--px-per-mm", str(1 / MM_PER_PX),
+                   "-o", str(tmp_path / "y.npz"), "--overlay", str(tmp_path / "c.gif")])
+    assert rc == 2 and "--overlay" in capsys.readouterr().err

@@ -12,12 +12,12 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-
 from tactile_force.edge.cli import main as cli_main
 from tactile_force.edge.cli_runtime import PLOT_NAME, LearningStatus, _plot_cv, nice_ticks
 from tactile_force.edge.errors import SceneError
 from tactile_force.edge.reading import Flags, ForceReading
 from tactile_force.edge.scene import load_scene, parse_scene, scene_from_flags
+
 from tests.conftest import shared_data
 
 REPO = Path(__file__).resolve().parents[2]
@@ -132,7 +132,7 @@ def test_learning_the_background_says_so_and_warns_on_contact(tmp_path, rgb_bund
                      str(tmp_path / "r.csv")]) == 0
     err = capsys.readouterr().err
     assert "learning the background from the first 5 frames" in err
-    assert "sensor: learning the background (frame 5)" in err  # the status line
+    assert "sensor: background learnt from 5 frames" in err
     assert "already differ like contact" in err
 
 
@@ -147,16 +147,21 @@ def test_a_clean_learnt_background_gives_no_warning(tmp_path, rgb_bundle, aurova
     assert "learning the background" in err and "already differ like contact" not in err
 
 
-def test_learning_status_line():
-    buf = io.StringIO()
-    st = LearningStatus(buf)
+def test_learning_shows_on_the_live_status_line():
+    from tactile_force.edge.outputs import StdoutWriter
+
+    live, done = io.StringIO(), io.StringIO()
+    status, learnt = StdoutWriter(live=True, stream=live), LearningStatus(done)
     for i in range(3):
-        st.write(ForceReading("left", i, i, 0.0, Flags.NO_CONTACT, detail="learning background"))
-    st.write(ForceReading("left", 3, 3, 0.0, Flags.NO_CONTACT))
-    st.close()
-    text = buf.getvalue()
-    assert "\rleft: learning the background (frame 3): keep the sensor untouched" in text
-    assert "background learnt from 3 frames" in text
+        r = ForceReading("left", i, i, 0.0, Flags.NO_CONTACT, detail="learning background")
+        status.write(r)
+        learnt.write(r)
+    assert live.getvalue().count("learning background") == 3 and done.getvalue() == ""
+    r = ForceReading("left", 3, 3, 0.0, Flags.NO_CONTACT)
+    status.write(r)
+    learnt.write(r)
+    assert "learning background" not in live.getvalue().rsplit("\r", 1)[-1]
+    assert "left: background learnt from 3 frames" in done.getvalue()
 
 
 def test_progress_uses_tqdm(monkeypatch, capsys):
@@ -195,3 +200,32 @@ def test_readme_names_the_plot_the_demo_writes():
 def test_scene_from_flags_validates_like_a_file(tmp_path):
     with pytest.raises(SceneError, match=r"command line \[\[sensor\]\] #1: 'fps' = 45; expected 60 or 30"):
         scene_from_flags("digit:D20001", fps=45.0)
+
+
+def test_run_from_flags_writes_an_mcap_log(tmp_path, monkeypatch, rgb_bundle, aurova_dir, aurova_bg, capsys):
+    """The issue's must-show: a replay run from flags ends with RE/MAE and leaves an MCAP file
+    that the mcap reader lists with one WrenchStamped message per reading."""
+    pytest.importorskip("mcap", reason="the 'mcap' extra is not installed")
+    pytest.importorskip("tactile_force.edge.mcap_output", reason="MCAP output not written yet")
+    from mcap.reader import make_reader
+
+    monkeypatch.chdir(tmp_path)
+    assert cli_main(["run", "--source", str(aurova_dir), "--bundle", str(rgb_bundle), "--background", str(aurova_bg),
+                     "--out", "run.mcap"]) == 0
+    assert "error vs truth over" in capsys.readouterr().err
+    with open(tmp_path / "run.mcap", "rb") as fh:
+        summary = make_reader(fh).get_summary()
+    counts = {summary.schemas[c.schema_id].name: summary.statistics.channel_message_counts.get(cid, 0)
+              for cid, c in summary.channels.items()}
+    assert counts["geometry_msgs/msg/WrenchStamped"] == 11
+
+
+def test_ros2_and_mcap_flags_become_scene_outputs(tmp_path, monkeypatch):
+    from tactile_force.edge.scene import OutputSpec
+
+    monkeypatch.chdir(tmp_path)
+    scene = scene_from_flags("virtual", outputs=["log.mcap"], ros2="/tactile/force")
+    assert scene.outputs[1:] == [OutputSpec("mcap", tmp_path / "log.mcap"), OutputSpec("ros2", topic="/tactile/force")]
+    with pytest.raises(SceneError, match="output 'ros2' writes no file; remove 'path'"):
+        parse_scene({"sensor": [{"source": "virtual"}], "output": [{"kind": "ros2", "topic": "/t", "path": "x"}]},
+                    tmp_path / "s.toml")

@@ -18,15 +18,15 @@ import pytest
 pytest.importorskip("mcap", reason="MCAP output needs the 'mcap' extra")
 pytest.importorskip("cyclonedds", reason="MCAP output serialises CDR with cyclonedds (the 'mcap' extra)")
 
-from mcap.reader import make_reader
-from tactile_force.edge.mcap_output import McapWriter, read_messages
-from tactile_force.edge.reading import Flags, ForceReading, StageLatency
-from tactile_force.edge.ros2_messages import (
+from mcap.reader import make_reader  # noqa: E402
+from tactile_force.edge.mcap_output import McapWriter, read_messages  # noqa: E402
+from tactile_force.edge.reading import Flags, ForceReading, StageLatency  # noqa: E402
+from tactile_force.edge.ros2_messages import (  # noqa: E402
     CompressedImage,
     DiagnosticArray,
     WrenchStamped,
 )
-from tactile_force.edge.ros2_names import StampClock
+from tactile_force.edge.ros2_names import StampClock  # noqa: E402
 
 
 def _readings() -> list[ForceReading]:

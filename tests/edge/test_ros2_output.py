@@ -22,16 +22,16 @@ os.environ["CYCLONEDDS_URI"] = LOOPBACK_XML.as_uri()  # before any participant e
 
 pytest.importorskip("cyclonedds", reason="ROS 2 output needs cyclonedds (the 'ros2' extra)")
 
-from cyclonedds.core import DDSException
-from cyclonedds.domain import DomainParticipant
-from cyclonedds.qos import Policy, Qos
-from cyclonedds.sub import DataReader
-from cyclonedds.topic import Topic
-from cyclonedds.util import duration
-from tactile_force.edge.reading import Flags, ForceReading, StageLatency
-from tactile_force.edge.ros2_messages import DiagnosticArray, WrenchStamped
-from tactile_force.edge.ros2_names import StampClock, dds_topic, ros_topic
-from tactile_force.edge.ros2_output import (
+from cyclonedds.core import DDSException  # noqa: E402
+from cyclonedds.domain import DomainParticipant  # noqa: E402
+from cyclonedds.qos import Policy, Qos  # noqa: E402
+from cyclonedds.sub import DataReader  # noqa: E402
+from cyclonedds.topic import Topic  # noqa: E402
+from cyclonedds.util import duration  # noqa: E402
+from tactile_force.edge.reading import Flags, ForceReading, StageLatency  # noqa: E402
+from tactile_force.edge.ros2_messages import DiagnosticArray, WrenchStamped  # noqa: E402
+from tactile_force.edge.ros2_names import StampClock, dds_topic, ros_topic  # noqa: E402
+from tactile_force.edge.ros2_output import (  # noqa: E402
     QosProfile,
     Ros2Publisher,
     dds_qos,

@@ -10,13 +10,13 @@ from pathlib import Path
 
 import cv2
 import pytest
-
 from tactile_force.edge import SceneError
 from tactile_force.edge.cli import main as cli_main
 from tactile_force.edge.cli_runtime import PLOT_NAME, _plot_cv, run_demo
 from tactile_force.edge.dataset import AuthorsDataset, AuthorsDatasetWriter
 from tactile_force.edge.scene import build_scene, default_bundle_path, describe_scene, load_scene
 from tactile_force.edge.sources import ReplayFolderSource
+
 from tests.conftest import shared_data
 
 REPO = Path(__file__).resolve().parents[2]

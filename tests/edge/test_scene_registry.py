@@ -9,7 +9,6 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-
 from tactile_force.edge.errors import SceneError, SourceError
 from tactile_force.edge.gate import GateOptions
 from tactile_force.edge.reading import Flags
@@ -22,6 +21,7 @@ from tactile_force.edge.scene import (
     open_source,
     parse_scene,
 )
+
 from tests.conftest import shared_data
 
 
@@ -61,6 +61,7 @@ def fake_digits(tmp_path, monkeypatch, portraits):
     """One DIGIT D20001 on a fake sysfs tree, streaming real frames through a fake camera
     (the V4L2 / USB boundary)."""
     from tactile_force.firmware_bridge import digit
+
     from tests.bridge.fakes import FakeCamera, FakeSysfsDevice, landscape, make_fake_sysfs
 
     roots = make_fake_sysfs(tmp_path / "hw", [FakeSysfsDevice("1-2", 0x2833, 0x0209, 0x0200, "D20001",

@@ -13,18 +13,19 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-
 from tactile_force.edge import cli_runtime
 from tactile_force.edge.cli import main as cli_main
 from tactile_force.edge.errors import SceneError
 from tactile_force.edge.scene import load_scene
+
 from tests.conftest import shared_data
 
 SENSOR = '[[sensor]]\nname = "left"\nsource = "camera"\n'
 
 #: (scene text, the words the error must hold: the key and what was expected)
 BAD_SCENES = {
-    "gate threshold a string": ('[gate]\nthreshold = "high"\n' + SENSOR, r"\[gate\]: 'threshold' = 'high'; expected a finite number"),
+    "gate threshold a string": ('[gate]\nthreshold = "high"\n' + SENSOR,
+                                r"\[gate\]: 'threshold' = 'high'; expected a finite number"),
     "gate background_frames a string": ('[gate]\nbackground_frames = "5"\n' + SENSOR,
                                         r"\[gate\]: 'background_frames' = '5'; expected an integer"),
     "runtime not a table": ("runtime = 5\n" + SENSOR, r"\[runtime\]: expected a table"),
@@ -37,6 +38,8 @@ BAD_SCENES = {
     "output not a table": ("output = 3\n" + SENSOR, r"'output' = 3; expected \[\[output\]\] tables"),
     "ros2 without topic": (SENSOR + '[[output]]\nkind = "ros2"\n', r"output 'ros2' needs 'topic'"),
     "mcap without path": (SENSOR + '[[output]]\nkind = "mcap"\n', r"output 'mcap' needs 'path'"),
+    "source a list": ("[[sensor]]\nsource = [1]\n", r"'source' = \[1\]; expected one of"),
+    "source a table": ("[[sensor]]\nsource = { a = 1 }\n", r"'source' = \{'a': 1\}; expected one of"),
 }
 
 
@@ -223,3 +226,56 @@ def test_every_sensor_lost_is_a_failed_check_exit_1(tmp_path, rgb_bundle, capsys
     err = capsys.readouterr().err
     assert "every sensor was lost" in err and "disappeared" in err and "Traceback" not in err
     assert os.path.exists(tmp_path / "r.csv")
+
+
+# -- property: any TOML-shaped table gives a Scene or a SceneError, never anything else ------
+def _toml_values():
+    from hypothesis import strategies as st
+
+    scalars = st.one_of(st.integers(-3, 70), st.floats(allow_nan=True, allow_infinity=True), st.booleans(),
+                        st.text(max_size=8), st.sampled_from(["camera", "replay", "virtual", "digit", "gelsight_mini",
+                                                              "video", "csv", "ros2", "mcap", "cpu", "oak", "paper"]))
+    return st.recursive(scalars, lambda inner: st.one_of(st.lists(inner, max_size=3),
+                                                         st.dictionaries(st.text(max_size=6), inner, max_size=3)),
+                        max_leaves=6)
+
+
+def _table_of(keys):
+    from hypothesis import strategies as st
+
+    return st.dictionaries(st.sampled_from(sorted(keys)), _toml_values(), max_size=5)
+
+
+def test_any_scene_table_parses_or_names_the_problem(tmp_path):
+    from hypothesis import HealthCheck, given, settings
+    from hypothesis import strategies as st
+    from tactile_force.edge.scene import _DEPTH_KEYS, _OUTPUT_KEYS, _RUNTIME_KEYS, SOURCE_KINDS, parse_scene
+
+    sensor_keys = {"name", "source", "background", "gate"} | {k for kind in SOURCE_KINDS.values() for k in kind.keys}
+    sensor = st.fixed_dictionaries({"source": st.one_of(st.sampled_from(sorted(SOURCE_KINDS)), _toml_values())},
+                                   optional={k: _toml_values() for k in sorted(sensor_keys - {"source"})})
+    gate_keys = {"threshold", "background_frames", "blur", "downscale", "convex_hull", "refresh_rate"}
+    scene = st.fixed_dictionaries({}, optional={
+        "runtime": st.one_of(_table_of(set(_RUNTIME_KEYS) | {"bundle"}), _toml_values()),
+        "gate": st.one_of(_table_of(gate_keys), _toml_values()),
+        "depth": st.one_of(_table_of(set(_DEPTH_KEYS)), _toml_values()),
+        "sensor": st.one_of(st.lists(st.one_of(sensor, _table_of(sensor_keys)), max_size=3), _toml_values()),
+        "output": st.one_of(st.lists(_table_of(_OUTPUT_KEYS), max_size=3), _toml_values()),
+    })
+
+    @settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+    @given(scene)
+    def check(data):
+        try:
+            parse_scene(data, tmp_path / "scene.toml")
+        except SceneError as exc:
+            assert str(tmp_path / "scene.toml") in str(exc)
+
+    check()
+
+
+def test_two_outputs_on_one_file_are_refused(tmp_path, rgb_bundle, aurova_dir):
+    p = _replay_scene(tmp_path, rgb_bundle, aurova_dir, str(tmp_path / "r.csv"))
+    p.write_text(p.read_text() + f'\n[[output]]\nkind = "jsonl"\npath = "{tmp_path / "r.csv"}"\n')
+    with pytest.raises(SceneError, match="used by more than one output"):
+        load_scene(p)

@@ -15,7 +15,10 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from benchmarks.robustness import FixedScale, NoiseFrames  # noqa: E402
+from benchmarks.robustness import FixedScale, NoiseFrames, use_package_root  # noqa: E402
+
+if os.environ.get("TF_PACKAGE_ROOT"):  # the baseline run against an older commit
+    use_package_root(os.environ["TF_PACKAGE_ROOT"])
 from tactile_force.edge import dataset as ds_mod  # noqa: E402
 from tactile_force.firmware_bridge.recorder import RecordOptions, record  # noqa: E402
 
