@@ -929,11 +929,11 @@ def small_filesystem(folder: Path, size_kib: int = 1536) -> Iterator[tuple[Path,
         budget["left"] -= len(data)
         orig_atomic(path, data)
 
-    ds_mod.AuthorsDatasetWriter._atomic_write = staticmethod(atomic)  # type: ignore[method-assign]
+    ds_mod.AuthorsDatasetWriter._atomic_write = staticmethod(atomic)
     try:
         yield folder, f"simulated: writes past {size_kib} KiB raise ENOSPC (not root: no tmpfs)"
     finally:
-        ds_mod.AuthorsDatasetWriter._atomic_write = staticmethod(orig_atomic)  # type: ignore[method-assign]
+        ds_mod.AuthorsDatasetWriter._atomic_write = staticmethod(orig_atomic)
 
 
 def probe_disk_full(folder: Path) -> tuple[Verdict, str]:
@@ -988,13 +988,13 @@ def _record_cli_with_fakes(argv: list[str]) -> tuple[int, str, str]:
             pass
 
     old_src, old_open = digit.DigitSource, hid_scale.HidScale.open
-    digit.DigitSource = FakeDigit  # type: ignore[misc,assignment]
-    hid_scale.HidScale.open = classmethod(lambda cls, options=None: FakeScaleHandle(3.0))  # type: ignore[method-assign,assignment]
+    digit.DigitSource = FakeDigit
+    hid_scale.HidScale.open = classmethod(lambda cls, options=None: FakeScaleHandle(3.0))
     try:
         return run_cli(argv)
     finally:
-        digit.DigitSource = old_src  # type: ignore[misc]
-        hid_scale.HidScale.open = old_open  # type: ignore[method-assign]
+        digit.DigitSource = old_src
+        hid_scale.HidScale.open = old_open
 
 
 def probe_replay_vanish(folder: Path, paced: bool) -> Verdict:

@@ -19,6 +19,7 @@ import re
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TextIO
 
 import cv2
 import numpy as np
@@ -129,7 +130,7 @@ class AuthorsDatasetWriter:
         for sub in ("images", "forces"):
             (self.root / sub).mkdir(parents=True, exist_ok=True)
         self.next_id = start_id
-        self._meta = None
+        self._meta: TextIO | None = None
 
     @staticmethod
     def _atomic_write(path: Path, data: bytes) -> None:

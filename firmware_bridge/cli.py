@@ -139,7 +139,8 @@ def main_record(args: argparse.Namespace) -> int:
     intensity = None
     if args.intensity:
         try:
-            intensity = tuple(int(x) for x in args.intensity.split(","))
+            r, g, b = (int(x) for x in args.intensity.split(","))
+            intensity = (r, g, b)
         except ValueError:
             raise SourceError(f"--intensity {args.intensity!r}: expected r,g,b integers 0..15") from None
     try:

@@ -24,7 +24,7 @@ import signal
 import threading
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Protocol
+from typing import Any, Protocol
 
 from ..edge.dataset import AuthorsDatasetWriter
 from ..edge.errors import DatasetError, SourceError
@@ -160,7 +160,7 @@ class _StopFlag:
 
     def __init__(self, enabled: bool) -> None:
         self.set = False
-        self._old: dict[int, object] = {}
+        self._old: dict[int, Any] = {}
         self._enabled = enabled and threading.current_thread() is threading.main_thread()
 
     def __enter__(self) -> _StopFlag:
@@ -244,7 +244,7 @@ def _loop(source: FrameSource, reference: ForceReference, options: RecordOptions
                 result.stopped_by = f"scale lost: {exc}"
                 break
             reason = _reject(ref, options)
-            if reason:
+            if reason or ref is None:
                 skip[reason] = skip.get(reason, 0) + 1
                 continue
             frame = check_frame(item.frame, name=f"frame {item.index}")
