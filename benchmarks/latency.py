@@ -7,8 +7,9 @@ the runtime puts in every reading: source (read()), gate, depth, inference (the 
 ``predict``), total (from the frame's arrival to the finished reading, what a user's
 ``total_ms`` shows) and glue = total - gate - depth - inference (the runtime's own work).
 For onnxruntime cases the same graph runs in a bare ``InferenceSession.run`` on the same
-frames (same session options) in the same run, so the runtime's overhead over bare inference
-is a measured figure. p50 / p90 / p99 over ``frames`` readings after ``warmup``.
+frames (same session options), one bare run after every runtime step (the same machine load),
+so the runtime's overhead over bare inference is a measured figure. p50 / p90 / p99 over
+``frames`` readings after ``warmup``.
 """
 
 from __future__ import annotations
@@ -189,31 +190,30 @@ def _predictor(case: LatencyCase, pool: FramePool):
     return OnnxForceModel(bundle, threads=case.threads), gmacs, note, str(path)
 
 
-def bare_onnxruntime(case: LatencyCase, pool: FramePool, clock: Clock = time.perf_counter_ns) -> Percentiles:
+class BareOnnxRuntime:
     """The case's graph in a bare ``InferenceSession.run`` (the runtime's session options:
-    ``threads`` intra-op threads, sequential, all graph optimisations) on the same frames, ms."""
-    import onnxruntime as ort
-    from tactile_force.edge import load_bundle
+    ``threads`` intra-op threads, sequential, all graph optimisations), fed pool frame k."""
 
-    bundle = load_bundle(case.bundle or latency_bundle(case.config, case.precision))
-    so = ort.SessionOptions()
-    so.intra_op_num_threads = case.threads
-    so.inter_op_num_threads = 1
-    so.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
-    so.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL
-    so.log_severity_level = 3
-    sess = ort.InferenceSession(str(bundle.onnx_path), so, providers=["CPUExecutionProvider"])
-    kinds = {s.name: s.kind for s in bundle.manifest.inputs}
-    out = [bundle.manifest.output.name]
-    n_total = case.warmup + case.frames
-    t = np.empty(n_total, np.float64)
-    for i in range(n_total):
-        k = i % len(pool.rgb)
-        feed = {n: (pool.depth[k:k + 1] if kind == "depth" else pool.rgb[k:k + 1]) for n, kind in kinds.items()}
-        t0 = clock()
-        sess.run(out, feed)
-        t[i] = (clock() - t0) / 1e6
-    return percentiles(t[case.warmup:])
+    def __init__(self, case: LatencyCase, pool: FramePool) -> None:
+        import onnxruntime as ort
+        from tactile_force.edge import load_bundle
+
+        bundle = load_bundle(case.bundle or latency_bundle(case.config, case.precision))
+        so = ort.SessionOptions()
+        so.intra_op_num_threads = case.threads
+        so.inter_op_num_threads = 1
+        so.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
+        so.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL
+        so.log_severity_level = 3
+        self.sess = ort.InferenceSession(str(bundle.onnx_path), so, providers=["CPUExecutionProvider"])
+        self.kinds = {s.name: s.kind for s in bundle.manifest.inputs}
+        self.out = [bundle.manifest.output.name]
+        self.pool = pool
+
+    def run(self, i: int) -> None:
+        k = i % len(self.pool.rgb)
+        rgb, depth = self.pool.rgb[k:k + 1], self.pool.depth[k:k + 1]
+        self.sess.run(self.out, {n: (depth if kind == "depth" else rgb) for n, kind in self.kinds.items()})
 
 
 def measure(case: LatencyCase, pool: FramePool | None = None, clock: Clock = time.monotonic_ns,
@@ -244,7 +244,19 @@ def measure(case: LatencyCase, pool: FramePool | None = None, clock: Clock = tim
             lat[r.frame_index] = (L.source_ms, L.gate_ms, L.depth_ms, L.inference_ms, L.total_ms)
             contact[r.frame_index] = not (r.flags & (Flags.NO_CONTACT | Flags.INVALID_INPUT))
 
-    rt.run(on_reading=keep)
+    # A bare session run of the same graph follows every runtime step (onnxruntime cases):
+    # both see the same machine load, interleaved frame by frame.
+    bare_runner = BareOnnxRuntime(case, pool) if bare and case.engine == "onnxruntime" else None
+    bare_ms = np.full(n_total, np.nan)
+    i = 0
+    while not rt.finished:
+        for r in rt.step():
+            keep(r)
+        if bare_runner is not None and i < n_total:
+            t0 = time.perf_counter_ns()
+            bare_runner.run(i)
+            bare_ms[i] = (time.perf_counter_ns() - t0) / 1e6
+        i += 1
     rt.close()
     t = lat[case.warmup:]
     samples = {
@@ -259,7 +271,7 @@ def measure(case: LatencyCase, pool: FramePool | None = None, clock: Clock = tim
     n_contact = int(contact.sum())
     if n_contact < n_total:
         note = (note + f"; gate open on {n_contact}/{n_total} frames").strip("; ")
-    b = bare_onnxruntime(case, pool) if bare and case.engine == "onnxruntime" else None
+    b = percentiles(bare_ms[case.warmup:]) if bare_runner is not None else None
     return LatencyResult(case, {k: percentiles(v) for k, v in samples.items()}, gmacs, note, where, samples, b)
 
 

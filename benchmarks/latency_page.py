@@ -41,7 +41,8 @@ from no-contact renders, the depth stage for depth variants, the model) and read
 times every reading carries: gate, depth, inference (the backend's predict), total (frame
 arrival -> reading, what `ForceReading.latency.total_ms` shows) and glue (total minus the
 stages: the runtime's own work). For onnxruntime rows the same graph also runs in a bare
-`InferenceSession.run` on the same frames (same session options) in the same run: "overhead
+`InferenceSession.run` on the same frames (same session options), one bare run after every
+runtime step so both see the same machine load: "overhead
 vs bare" = p50 of (total - gate - depth) over the bare p50, minus 1. Latency bundles have
 RANDOM weights (latency does not depend on the values) and are built through export_bundle /
 quantize_bundle (int8 calibrated on 32 synthetic frames). Threads = ORT intra-op threads,

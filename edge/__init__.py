@@ -61,15 +61,21 @@ def __dir__() -> list[str]:
     return sorted(set(globals()) | set(_LAZY))
 
 
-__all__ = sorted([
-    "Bundle", "load_bundle", "read_manifest", "sha256_file", "write_bundle",
-    "AcceleratorUnavailableError", "BundleError", "DatasetError", "FrameError", "MissingExtraError", "SceneError",
-    "SourceError", "TactileForceError",
-    "FRAME_SHAPE", "FrameSource", "SourceStats", "TimedFrame", "check_frame",
-    "DEPTH_VARIANTS", "PRECISIONS", "VARIANTS", "InputKind", "Manifest", "Precision", "Variant",
-    "MAX_VALID_FORCE_N", "MIN_VALID_FORCE_N", "Flags", "ForceReading", "StageLatency",
-    *_LAZY,
-])
+__all__ = [
+    "AcceleratorUnavailableError", "AuthorsDataset", "AuthorsDatasetWriter", "Bundle", "BundleError",
+    "CameraSource", "ContactGate", "ContactSpec", "CsvWriter", "DEPTH_VARIANTS", "DataStats", "DatasetError",
+    "DatasetOptions", "DatasetSummary", "DepthOptions", "DepthResult", "DepthStage", "ErrorReport", "ErrorStats",
+    "FRAME_SHAPE", "Flags", "ForceCalibration", "ForceReading", "ForceRuntime", "FrameError", "FrameSource",
+    "GateOptions", "GateResult", "IndenterSplit", "InputKind", "JsonlWriter", "LadderChoice", "MAX_VALID_FORCE_N",
+    "MIN_VALID_FORCE_N", "Manifest", "MaxDeformationBaseline", "MissingExtraError", "NormalLUT", "OnnxForceModel",
+    "PRECISIONS", "Precision", "ReplayFolderSource", "RuntimeOptions", "RuntimeStats", "Sample", "Scene",
+    "SceneError", "Sensor", "SourceError", "SourceStats", "StageLatency", "StdoutWriter", "StreamLost",
+    "SyntheticFrame", "TactileForceError", "TimedFrame", "VARIANTS", "Variant", "VideoFileSource", "VirtualDigit",
+    "VirtualDigitOptions", "VirtualDigitSource", "build_scene", "check_frame", "choose_bundle",
+    "default_bundle_path", "describe_scene", "error_report", "error_stats", "generate_dataset", "indenter_split",
+    "load_background", "load_bundle", "load_scene", "open_v4l2", "paper_split", "plan_stages", "read_manifest",
+    "relative_error", "sha256_file", "split_ids", "write_bundle",
+]
 
 if TYPE_CHECKING:  # for type checkers and IDEs; at run time these load lazily
     from .data_stats import DataStats

@@ -118,11 +118,14 @@ def main(argv: list[str] | None = None) -> int:
     module_name, configure_name, main_name, help_line = COMMANDS[name]
     try:
         module = importlib.import_module(module_name)
-    except ModuleNotFoundError as exc:
-        extra = _EXTRA_OF.get((exc.name or "").split(".")[0])
+    except ImportError as exc:  # ModuleNotFoundError, or MissingExtraError from a package's own check
+        from .errors import MissingExtraError
+
+        missing = exc.module if isinstance(exc, MissingExtraError) else (exc.name or "")
+        extra = _EXTRA_OF.get(missing.split(".")[0])
         if extra is None or debug:
             raise
-        print(f"tactile-force {name}: needs the '{extra}' extra ({exc.name} is not installed). {_EXTRA_HINT[extra]}",
+        print(f"tactile-force {name}: needs the '{extra}' extra ({missing} is not installed). {_EXTRA_HINT[extra]}",
               file=sys.stderr)
         return 2
     parser = argparse.ArgumentParser(prog=f"tactile-force {name}", description=help_line,

@@ -64,7 +64,10 @@ class GateOptions:
         saturation_threshold) covering this fraction of the frame reads as gel saturation.
     convex_hull: replace each kept blob by its convex hull (the contact patch of a convex
         indenter is convex). Off by default: a DIGIT grasps any shape. See :meth:`gelsight_mini`.
-    trust: fit gain/offset and judge mismatch / invalid frames (off: the plain gate).
+    open_px: side (working pixels) of a morphological opening of the changed-pixel mask
+        before the blobs are found (0 = none: the blur and ``min_blob_frac`` remove specks).
+    trust: judge mismatch / invalid frames (off: the plain gate; the gain/offset
+        compensation runs either way).
     fit_tolerance: a thumbnail cell fits the background when its residual after the fit is
         below this (grey levels).
     step_level: mean brightness change (grey levels) implied by the fitted gain/offset above
@@ -91,6 +94,7 @@ class GateOptions:
     saturation_threshold: float = 60.0
     saturation_area_frac: float = 0.25
     convex_hull: bool = False
+    open_px: int = 0
     trust: bool = True
     fit_tolerance: float = 8.0
     step_level: float = 10.0
@@ -106,7 +110,7 @@ class GateOptions:
         around the contact than a DIGIT's, so a higher threshold, convex hulls (ball and
         other convex indenters) and a finer working resolution (x2). On the 16 labelled ball
         presses (shared data): IoU with the contact circles mean 0.65 (see docs/runtime.md)."""
-        base: dict[str, object] = {"threshold": 28.0, "convex_hull": True, "downscale": 2, "blur": 5}
+        base: dict[str, object] = {"threshold": 28.0, "convex_hull": True, "downscale": 2, "blur": 5, "open_px": 3}
         return cls(**{**base, **overrides})  # type: ignore[arg-type]
 
     def validate(self) -> None:
@@ -135,6 +139,8 @@ class GateOptions:
         for name in ("fit_floor", "motion_explained"):
             if not 0 < getattr(self, name) < 1:
                 raise ValueError(f"gate.{name}={getattr(self, name)}: expected 0 < value < 1")
+        if int(self.open_px) != self.open_px or self.open_px < 0:
+            raise ValueError(f"gate.open_px={self.open_px}: expected an integer >= 0 (0 = no opening)")
         if int(self.relearn_frames) != self.relearn_frames or self.relearn_frames < 0:
             raise ValueError(f"gate.relearn_frames={self.relearn_frames}: expected an integer >= 0 (0 = never)")
 
@@ -347,11 +353,9 @@ class ContactGate:
             r.thumb = thumb
             return r
 
-        y = None
-        if o.trust:
-            np.copyto(self._thumb_f, thumb, casting="unsafe")
-            y = self._thumb_f.reshape(-1, 3)
-            self._fit()
+        np.copyto(self._thumb_f, thumb, casting="unsafe")
+        y = self._thumb_f.reshape(-1, 3)
+        self._fit(final=o.trust)
         # Model of the frame = background x gain + offset per channel (uint8), then the max
         # over B, G, R of |frame - model| > threshold <=> not all channels within [0, t].
         self._M[self._diag] = self._gain
@@ -366,7 +370,8 @@ class ContactGate:
         saturation_seen = False
         deformation = 0.0
         if cv2.countNonZero(self._mask):
-            cv2.morphologyEx(self._mask, cv2.MORPH_OPEN, self._kernel, dst=self._mask)
+            if self._kernel is not None:
+                cv2.morphologyEx(self._mask, cv2.MORPH_OPEN, self._kernel, dst=self._mask)
             # Keep blobs big enough to be contact, filled (a ball's flat top looks like background).
             contours, _ = cv2.findContours(self._mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
             self._mask[:] = 0
@@ -376,9 +381,10 @@ class ContactGate:
                     keep = [cv2.convexHull(c) for c in keep]
                 cv2.drawContours(self._mask, keep, -1, 255, thickness=cv2.FILLED)
                 area_small = cv2.countNonZero(self._mask)
-                cv2.inRange(self._ad, self._zero, self._sat, dst=self._strong)
-                strong = self._work_area - cv2.countNonZero(self._strong)
-                saturation_seen = strong >= o.saturation_area_frac * self._work_area
+                if area_small >= o.saturation_area_frac * self._work_area:  # else the strong area cannot be
+                    cv2.inRange(self._ad, self._zero, self._sat, dst=self._strong)
+                    strong = self._work_area - cv2.countNonZero(self._strong)
+                    saturation_seen = strong >= o.saturation_area_frac * self._work_area
                 deformation = max(cv2.mean(self._ad, mask=self._mask)[:3])
 
         s = int(o.downscale)
@@ -400,7 +406,7 @@ class ContactGate:
 
         invalid = mismatch = ""
         self._relearned_now = False
-        if o.trust and y is not None:
+        if o.trust:
             invalid, mismatch = self._judge(y, work, thumb, frac, was_contact)
         if self._relearned_now:  # this frame is the new background: no contact in it
             self._contact = False
@@ -438,10 +444,11 @@ class ContactGate:
         cv2.inRange(self._tres, self._zero, self._tol, dst=self._inl)
         return cv2.countNonZero(self._inl)
 
-    def _fit(self) -> None:
+    def _fit(self, final: bool = True) -> None:
         """Per-channel gain/offset (frame = gain x background + offset), least squares over
         the thumbnail cells that fit the previous model (all cells when fewer than half do:
-        after a sudden change); sets ``_inl`` (cells that fit now) and ``_fit_frac``."""
+        after a sudden change); with ``final`` also ``_inl`` (cells that fit now) and
+        ``_fit_frac`` for the judging."""
         bg = self._bg_thumb
         assert bg is not None
         cells = self._inl.size
@@ -455,7 +462,8 @@ class ContactGate:
             g = (mxy[c] - m * my[c]) / var if var > 1e-3 else 0.0
             self._gain[c] = g
             self._offset[c] = my[c] - g * m
-        self._fit_frac = self._residual() / cells
+        if final:
+            self._fit_frac = self._residual() / cells
 
     def _judge(self, y: np.ndarray, work: np.ndarray, thumb: np.ndarray, frac: float,
                was_contact: bool) -> tuple[str, str]:
@@ -661,7 +669,8 @@ class ContactGate:
         self._work_area = wh * ww
         self._full_area = h * w
         self._min_blob = o.min_blob_frac * self._work_area
-        self._kernel = cv2.getStructuringElement(cv2.MORPH_RECT, (3, 3))
+        self._kernel = (cv2.getStructuringElement(cv2.MORPH_RECT, (o.open_px, o.open_px)) if o.open_px > 1
+                        else None)
         self._diag = (np.arange(3), np.arange(3))
 
     def _prepare(self, arr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -24,4 +24,11 @@ from .quantize import FrameCalibrationReader, QuantizeError, QuantizeOptions, qu
 from .zoo import (VARIANT_INPUTS, D, Dmod, ModelSpec, RGBmod, RGBmodD, UnknownVariantError, build_model,  # noqa: E402
                   check_variant, fold_linear_head)
 
-__all__ = [name for name in dir() if not name.startswith("_")]
+__all__ = [
+    "CalibrationData", "CalibrationError", "Checkpoint", "CheckpointError", "D", "Dmod", "ExportOptions",
+    "ForceNet", "FrameCalibrationReader", "MacCount", "ModelSpec", "ParityError", "ParityResult", "Preprocess",
+    "QuantizeError", "QuantizeOptions", "RGBmod", "RGBmodD", "UnknownVariantError", "VARIANT_INPUTS", "build_model",
+    "check_variant", "count_macs", "export_bundle", "fold_input_scaling", "fold_linear_head", "input_convs",
+    "load_checkpoint", "load_into", "model_from_checkpoint", "name_nodes", "network_hw", "op_counts",
+    "ort_optimized_ops", "quantize_bundle", "random_frames", "save_checkpoint", "scale_factor", "to_onnx",
+]

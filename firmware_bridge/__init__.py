@@ -17,4 +17,12 @@ from .recorder import RecordOptions, RecordResult, prepare_output, record
 from .sysfs import UsbDeviceInfo, scan_sysfs
 from .usb_ids import DeviceKind, bcd_to_revision, classify_ids
 
-__all__ = [name for name in dir() if not name.startswith("_")]
+__all__ = [
+    "AttachedDevice", "DeviceKind", "DigitOptions", "DigitSource", "DiscoveryResult", "G", "GelSightMiniOptions",
+    "GelSightMiniSource", "HidScale", "NNArchiveInfo", "OakForceModel", "OakOptions", "RESOLUTIONS",
+    "RecordOptions", "RecordResult", "SDK_CROP_FRACTION", "ScaleOptions", "ScaleReading", "ScaleReportError",
+    "ScaleStatus", "UsbDeviceInfo", "archive_config", "available_oaks", "bcd_to_revision", "build_nn_archive",
+    "classify", "classify_ids", "crop_box", "discover", "find_digit", "find_gelsight_mini", "find_scales",
+    "intensity_code", "parse_scale_report", "prepare_output", "record", "reset_usb_device", "scan_pyusb",
+    "scan_sysfs", "udev_rules_path",
+]

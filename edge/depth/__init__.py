@@ -21,4 +21,9 @@ from .normals import MappingError, PaperMLP, decode_paper_normals
 from .poisson import PoissonSolver, forward_gradients
 from .stage import DepthOptions, DepthResult, DepthStage
 
-__all__ = [name for name in dir() if not name.startswith("_")]
+__all__ = [
+    "AngleError", "Circle", "DepthOptions", "DepthResult", "DepthStage", "GradientGuards", "LUTOptions",
+    "MappingError", "MaxDeformationBaseline", "NormalLUT", "PaperMLP", "PoissonSolver", "Press", "cap_depth_px",
+    "decode_paper_normals", "detect_press_circle", "evaluate_lut", "fit_lut", "forward_gradients",
+    "max_deformation", "normals_to_gradients", "sphere_normals",
+]

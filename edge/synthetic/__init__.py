@@ -12,4 +12,10 @@ from .shading import Led, ShadingOptions
 from .source import PHASES, VirtualDigitSource
 from .splits import PAPER_SPLIT_SEEDS, IndenterSplit, indenter_split, paper_split, split_ids
 
-__all__ = [name for name in dir() if not name.startswith("_")]
+__all__ = [
+    "ContactSpec", "DatasetOptions", "DatasetSummary", "DomeOptions", "EXTRA_INDENTERS", "ForceDistribution",
+    "GelOptions", "INDENTERS", "Indenter", "IndenterSplit", "Led", "PAPER_INDENTERS", "PAPER_SPLIT_SEEDS", "PHASES",
+    "STIFFNESS_CLASSES", "ShadingOptions", "SyntheticFrame", "VirtualDigit", "VirtualDigitOptions",
+    "VirtualDigitSource", "dome_height_mm", "generate_dataset", "get_indenter", "indenter_split",
+    "paper_indenter_names", "paper_split", "sample_contact", "split_ids",
+]

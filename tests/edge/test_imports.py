@@ -1,0 +1,46 @@
+"""Importing the runtime loads only what it uses (checked on sys.modules in a fresh interpreter)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+from tactile_force.edge.scene import default_bundle_path
+
+HEAVY = ("tactile_force.edge.depth", "tactile_force.edge.synthetic", "tactile_force.export", "torch", "onnx",
+         "depthai", "usb", "hid", "cyclonedds", "mcap", "pyudev", "matplotlib")
+
+
+def _modules(code: str) -> set[str]:
+    out = subprocess.run([sys.executable, "-c", code + "\nimport sys, json; print(json.dumps(sorted(sys.modules)))"],
+                         capture_output=True, text=True, check=True).stdout
+    return set(json.loads(out.strip().splitlines()[-1]))
+
+
+def _loaded(mods: set[str], prefix: str) -> bool:
+    return any(m == prefix or m.startswith(prefix + ".") for m in mods)
+
+
+def test_import_edge_loads_only_the_contracts():
+    mods = _modules("import tactile_force.edge")
+    assert {"tactile_force.edge.manifest", "tactile_force.edge.bundle", "tactile_force.edge.reading"} <= mods
+    for heavy in HEAVY + ("onnxruntime", "cv2", "tactile_force.edge.runtime", "tactile_force.edge.scene"):
+        assert not _loaded(mods, heavy), heavy
+
+
+def test_an_rgbmod_runtime_never_loads_depth_synthetic_torch_or_devices(tmp_path):
+    import cv2
+    import numpy as np
+
+    for i in range(3):
+        cv2.imwrite(str(tmp_path / f"{i}.png"), np.full((320, 240, 3), 100, np.uint8))
+    mods = _modules(
+        "from tactile_force.edge import ForceRuntime, OnnxForceModel, Sensor, ContactGate, GateOptions, "
+        "ReplayFolderSource\n"
+        f"rt = ForceRuntime([Sensor('s', ReplayFolderSource({str(tmp_path)!r}), ContactGate(GateOptions()))], "
+        f"OnnxForceModel({str(default_bundle_path())!r}))\n"
+        "rt.run(); rt.close()")
+    assert _loaded(mods, "onnxruntime") and _loaded(mods, "tactile_force.edge.runtime")
+    for heavy in HEAVY:
+        assert not _loaded(mods, heavy), heavy
