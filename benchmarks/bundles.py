@@ -60,9 +60,15 @@ def latency_bundle(cfg: ModelConfig, precision: str, seed: int = 0) -> Path:
     if (out / "model.json").is_file():
         return out
     import torch
-
-    from tactile_force.export import (ExportOptions, ForceNet, ModelSpec, QuantizeOptions, build_model, export_bundle,
-                                      quantize_bundle)
+    from tactile_force.export import (
+        ExportOptions,
+        ForceNet,
+        ModelSpec,
+        QuantizeOptions,
+        build_model,
+        export_bundle,
+        quantize_bundle,
+    )
 
     pool = frame_pool()
     fp32 = root / "fp32"
@@ -71,13 +77,14 @@ def latency_bundle(cfg: ModelConfig, precision: str, seed: int = 0) -> Path:
         net = ForceNet(build_model(cfg.variant, cfg.width), ModelSpec(cfg.variant, cfg.width, 1.0 / cfg.k))
         with torch.no_grad():  # outputs around 8 N, inside the valid range, so the manifest's RE is defined
             [m for m in net.modules() if isinstance(m, torch.nn.Linear)][-1].bias.add_(8.0)
+        why = f"nothing: random weights (torch seed {seed}), for latency only"
         export_bundle(net, fp32, ExportOptions(parity_data=pool.calibration(cfg.variant, 4), parity_tol_n=1e-3,
-                                               name=f"{cfg.name}-random-fp32", overwrite=True,
-                                               trained_on=f"nothing: random weights (torch seed {seed}), for latency only"))
+                                               name=f"{cfg.name}-random-fp32", overwrite=True, trained_on=why))
     if precision != "fp32":
         tmp = root / f"{precision}.partial"
         shutil.rmtree(tmp, ignore_errors=True)
-        quantize_bundle(fp32, tmp, QuantizeOptions(mode=precision, name=f"{cfg.name}-random-{precision}", overwrite=True),
+        qo = QuantizeOptions(mode=precision, name=f"{cfg.name}-random-{precision}", overwrite=True)
+        quantize_bundle(fp32, tmp, qo,
                         calibration=pool.calibration(cfg.variant, 32), eval_data=pool.calibration(cfg.variant, 8))
         shutil.rmtree(out, ignore_errors=True)
         tmp.rename(out)

@@ -128,7 +128,6 @@ def two_sensors(bundle: Path, pool, seconds: float) -> tuple[list[list[object]],
     from tactile_force.edge.reading import Flags
     from tactile_force.edge.runtime import ForceRuntime, RuntimeOptions, Sensor
 
-    model = OnnxForceModel(bundle, threads=1)
     n = int(seconds * 60)
     rows = []
 
@@ -138,6 +137,7 @@ def two_sensors(bundle: Path, pool, seconds: float) -> tuple[list[list[object]],
             g = ContactGate()
             g.capture_background(pool.background)
             sensors.append(Sensor(name, PacedMemorySource(pool.rgb, 60.0, n, offset_s=k / 120.0, name=name), g))
+        model = OnnxForceModel(bundle, threads=1)  # ForceRuntime.close() closes its model: one per run
         rt = ForceRuntime(sensors, model, RuntimeOptions(latency_window=16))
         got: dict[str, list[float]] = {s: [] for s in names}
 
@@ -324,10 +324,11 @@ def latency_page(args, argv: list[str], measure_fn: Callable[[LatencyCase], Late
         + f"\n\nExact mode runs the mapping only inside the gate's contact mask (mean mask on the latency frames: "
           f"{mask_note[0][0]}); the paper MLP runs in a folded form (fc3 and fc4 have no activation between them: "
           "one 32 -> 3 layer; fc1's position part a per-pixel table), equal to the four layers to 5e-7. Paper mode "
-          "(the authors' pipeline, 11 real AUROVA frames, their contact regions as masks) ran the MLP on every pixel; "
-          "it now runs it in the mask dilated by `DepthOptions.paper_dilation_px` (default 16) and takes the "
-          "reference frames' gradients elsewhere. The error column compares each depth image with the every-pixel "
-          "one of the same mode.", dpstate))
+          "(the authors' pipeline, 11 real AUROVA frames, their contact regions as masks) runs the MLP on every pixel "
+          "by default; `DepthOptions.paper_dilation_px` runs it only in the dilated mask and takes the reference "
+          "frames' gradients elsewhere. The error column compares each depth image with the every-pixel one of the "
+          "same mode: paper mode integrates the whole frame, so what lies outside the mask moves the depth inside "
+          "it, and the masked variant is not the default.", dpstate))
 
     gh, gr = gate_table(100 if quick else 500)
     sections.append(Section("Contact gate cost and agreement (ContactGate.update alone)",

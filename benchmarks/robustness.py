@@ -945,17 +945,17 @@ def probe_disk_full(folder: Path) -> tuple[Verdict, str]:
         out = fs / "ds"
         rc, stdout, stderr = _record_cli_with_fakes(["record", "--sensor", "0", "--out", str(out)])
         verdicts = []
+        m = re.search(r"wrote (\d+) sample", stdout)
         if "Traceback" in stdout + stderr:
             verdicts.append(Verdict(Outcome.TRACEBACK, stderr[-300:]))
-        m = re.search(r"wrote (\d+) sample", stdout)
-        if rc == 0 or "disk full" not in stderr or not m:
+        elif rc == 0 or "disk full" not in stderr or not m:
             verdicts.append(Verdict(Outcome.SILENT_WRONG,
                                     f"exit {rc}; stdout {stdout[-200:]!r}; stderr {stderr[-200:]!r}"))
-        written = int(m.group(1)) if m else -1
+        written = int(m.group(1)) if m else None  # no summary: judged above, not as data lost
         try:
             n = len(list(AuthorsDataset(out)))
             leftovers = [p.name for p in out.rglob(".*.tmp")]
-            if n != written or written < 1:
+            if n < 1 or (written is not None and n != written):
                 verdicts.append(Verdict(Outcome.DATA_LOST, f"{n} samples read back, summary says {written}"))
             elif leftovers:
                 verdicts.append(Verdict(Outcome.SILENT_WRONG, f"temp files left: {leftovers}"))

@@ -13,6 +13,7 @@ Samples are paired by their number N, never by directory listing order.
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 import re
@@ -117,12 +118,28 @@ class AuthorsDataset:
             yield self.load(n)
 
 
+def _fsync_dir(folder: Path) -> None:
+    """Make a rename in ``folder`` durable (no-op where directories cannot be opened, e.g. Windows)."""
+    try:
+        fd = os.open(folder, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError as exc:  # some filesystems cannot fsync a directory; real I/O errors propagate
+        if exc.errno not in (errno.EINVAL, errno.EBADF, errno.ENOTSUP):
+            raise
+    finally:
+        os.close(fd)
+
+
 class AuthorsDatasetWriter:
     """Write samples in the authors' layout, each file atomically (temp + rename).
 
-    The force file is written last, so a crash leaves at most one sample without its
-    label, which readers of this layout report clearly; ``meta.jsonl`` is appended and
-    flushed per sample.
+    The force file is written last, after the image (file and folder entry) and the
+    ``meta.jsonl`` line are on disk (fsync), so a crash or power cut leaves at most one
+    sample without its label, which readers of this layout report clearly and
+    ``tactile-force record --repair`` removes.
     """
 
     def __init__(self, root: str | os.PathLike, start_id: int = 0) -> None:
@@ -151,15 +168,20 @@ class AuthorsDatasetWriter:
         if not ok:
             raise DatasetError(f"cannot encode frame {n} as PNG (shape {frame.shape}, dtype {frame.dtype})")
         self._atomic_write(self.root / "images" / f"{n}.png", png.tobytes())
+        folders = [self.root / "images"]
         if depth is not None:
             (self.root / "filt_img_depth").mkdir(exist_ok=True)
             ok, dpng = cv2.imencode(".png", depth)
             self._atomic_write(self.root / "filt_img_depth" / f"depth_img_{n}.png", dpng.tobytes())
+            folders.append(self.root / "filt_img_depth")
+        for folder in folders:  # the renames are durable before the label can be
+            _fsync_dir(folder)
         if meta is not None:
             if self._meta is None:
-                self._meta = open(self.root / "meta.jsonl", "a")
+                self._meta = open(self.root / "meta.jsonl", "a")  # noqa: SIM115 - kept open across samples
             self._meta.write(json.dumps({"id": n, **meta}) + "\n")
             self._meta.flush()
+            os.fsync(self._meta.fileno())
         self._atomic_write(self.root / "forces" / f"force_{n}.txt", f"{force_n:.6f}\n".encode())
         self.next_id = max(self.next_id, n + 1)
         return n

@@ -428,8 +428,8 @@ class ContactGate:
         if s > 1 and not self._exact:
             r._mask_ready = True
         r.mismatch, r.invalid, r.deformation, r.thumb = mismatch, invalid, float(deformation), thumb
-        r.gain = (float(self._gain[0]), float(self._gain[1]), float(self._gain[2]))
-        r.offset = (float(self._offset[0]), float(self._offset[1]), float(self._offset[2]))
+        r.gain = tuple(self._gain.tolist())
+        r.offset = tuple(self._offset.tolist())
         return r
 
     # -- trust ----------------------------------------------------------------------------
@@ -489,6 +489,9 @@ class ContactGate:
         if noise > o.noise_factor * self._bg_noise * max(1.0, *gain) + 1.0:
             invalid = (f"noise burst: pixel noise {noise:.1f} grey levels against {self._bg_noise:.1f} in the "
                        "background (interference, a failing cable or camera?)")
+        elif noise < 0.45 * self._bg_noise * min(1.0, *gain):
+            invalid = (f"blurred frame: fine detail {noise:.1f} grey levels against {self._bg_noise:.1f} in the "
+                       "background (defocus, a smudged lens or condensation?)")
         reason, kind = "", ""
         if not invalid and (global_change or photometric):
             if float(y.std(axis=0).max()) < 2.0:
@@ -672,6 +675,9 @@ class ContactGate:
         self._kernel = (cv2.getStructuringElement(cv2.MORPH_RECT, (o.open_px, o.open_px)) if o.open_px > 1
                         else None)
         self._diag = (np.arange(3), np.arange(3))
+        # x2: INTER_LINEAR is exactly the 2x2 mean; larger factors: one pixel per block (reads a
+        # quarter of the frame's memory; the blur that follows averages neighbouring blocks).
+        self._shrink = cv2.INTER_LINEAR if s <= 2 else cv2.INTER_NEAREST
 
     def _prepare(self, arr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Downscale (INTER_LINEAR: the mean of the central 2x2 of each block, as fast as a
@@ -681,7 +687,7 @@ class ContactGate:
         src = arr
         if s > 1:
             cv2.resize(arr, (self._small.shape[1], self._small.shape[0]), dst=self._small,
-                       interpolation=cv2.INTER_LINEAR)
+                       interpolation=self._shrink)
             src = self._small
         else:
             np.copyto(self._small, arr)
@@ -691,5 +697,5 @@ class ContactGate:
         else:
             np.copyto(self._work, src)
         cv2.resize(self._work, (self._thumb.shape[1], self._thumb.shape[0]), dst=self._thumb,
-                   interpolation=cv2.INTER_AREA)
+                   interpolation=cv2.INTER_LINEAR)
         return self._work, self._thumb

@@ -860,7 +860,7 @@ class LearningWatch:
         gate = ContactGate(dataclasses.replace(self.options, refresh_rate=0.0))
         try:
             gate.capture_background(frames[:1])
-            moved = [i for i, f in enumerate(frames[1:], 1) if gate.update(f).contact]
+            moved = [i for i, f in enumerate(frames[1:], 1) if (r := gate.update(f)).contact or r.mismatch]
         except FrameError:
             return  # the runtime reports bad frames itself
         if moved:
@@ -910,7 +910,7 @@ def build_scene(scene: Scene, clock: Clock | None = None, warn: Callable[[str], 
             gate = ContactGate(dataclasses.replace(s.gate))
             source = open_source(s, clock)
             if s.name in backgrounds:
-                gate.capture_background(backgrounds[s.name])
+                gate.capture_background(backgrounds[s.name], origin=str(s.background))
             else:
                 notes.append(f"sensor '{s.name}': learning the background from the first "
                              f"{s.gate.background_frames} frames: keep the sensor untouched")

@@ -75,7 +75,8 @@ def detect_press_circle(frame: np.ndarray, background: np.ndarray, min_radius_px
     return Circle(cx=float(m["m10"] / m["m00"]), cy=float(m["m01"] / m["m00"]), r=r)
 
 
-def sphere_normals(shape: tuple[int, int], circle: Circle, ball_radius_px: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def sphere_normals(shape: tuple[int, int], circle: Circle,
+                   ball_radius_px: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Normals and heights of a ball of radius R px pressed with contact ``circle``.
 
     Returns (normals H x W x 3 float32, inside H x W bool, height H x W float32 px):
@@ -137,7 +138,8 @@ class NormalLUT:
     """
 
     def __init__(self, lut: np.ndarray, bin_width: float, background: np.ndarray,
-                 px_per_mm: float = float("nan"), ball_radius_mm: float = float("nan"), report: dict | None = None) -> None:
+                 px_per_mm: float = float("nan"), ball_radius_mm: float = float("nan"),
+                 report: dict | None = None) -> None:
         b = lut.shape[0]
         if lut.ndim != 4 or lut.shape != (b, b, b, 3):
             raise MappingError(f"LUT shape {lut.shape}: expected (B, B, B, 3)")
@@ -191,7 +193,8 @@ class NormalLUT:
     @classmethod
     def from_arrays(cls, z: dict[str, np.ndarray], source: str = "<arrays>") -> NormalLUT:
         if str(z.get("format", "")) != LUT_FORMAT:
-            raise MappingError(f"{source}: not a calibrate-depth file (format {z.get('format')!r}, expected {LUT_FORMAT!r})")
+            raise MappingError(f"{source}: not a calibrate-depth file (format {z.get('format')!r}, "
+                               f"expected {LUT_FORMAT!r})")
         if int(z["version"]) != LUT_VERSION:
             raise MappingError(f"{source}: calibration version {int(z['version'])}; this package reads {LUT_VERSION}")
         try:
@@ -234,8 +237,9 @@ def _fill_empty(sums: np.ndarray, counts: np.ndarray, max_iter: int = 64) -> np.
 
 
 def fit_lut(presses: list[Press], background: np.ndarray, ball_radius_px: float,
-            options: LUTOptions = LUTOptions()) -> NormalLUT:
+            options: LUTOptions | None = None) -> NormalLUT:
     """Fit a LUT from presses with known circles (detect missing ones first)."""
+    options = options or LUTOptions()
     b = options.bins
     sums = np.zeros((b, b, b, 3), dtype=np.float64)
     counts = np.zeros((b, b, b), dtype=np.float64)
@@ -267,6 +271,8 @@ def evaluate_lut(lut: NormalLUT, presses: list[Press], ball_radius_px: float) ->
     """Normal angle error of ``lut`` inside the contact circles of ``presses``."""
     errs = []
     for press in presses:
+        if press.circle is None:  # no contact circle: nothing to compare against
+            continue
         n, inside, _ = sphere_normals(press.frame.shape[:2], press.circle, ball_radius_px)
         idx = np.flatnonzero(inside.ravel())
         errs.append(angle_error(lut.normals(press.frame, idx), n.reshape(-1, 3)[idx]))

@@ -72,6 +72,7 @@ class PaperMLP:
         self._w34 = np.ascontiguousarray((self.w[2].astype(np.float64) @ self.w[3]).astype(np.float32))
         self._b34 = (self.b[2].astype(np.float64) @ self.w[3] + self.b[3]).astype(np.float32)
         self._pos: np.ndarray | None = None
+        self._work: tuple[np.ndarray, ...] | None = None
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> PaperMLP:
@@ -90,27 +91,36 @@ class PaperMLP:
             self._pos = (xy @ self._w_pos + self.b[0]).astype(np.float32)  # (H*W, 32): fc1's position part
             self._grid = shape
 
+    def _buffers(self, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """Two (n, 32) and (n, 3) float32 work buffers, grown when needed and reused (fresh
+        multi-MB arrays per frame cost page faults: the MLP took twice as long)."""
+        if self._work is None or self._work[0].shape[0] < n:
+            self._work = (np.empty((n, 32), np.float32), np.empty((n, 3), np.float32))
+        return self._work[0][:n], self._work[1][:n]
+
     def encoded(self, frame: np.ndarray, index: np.ndarray | None = None) -> np.ndarray:
         """frame: H x W x 3 uint8 BGR; index: flat pixel indices (None = all).
-        Returns (N, 3) float32 (n + 1)/2 encoded normals, digit-depth convention. Pixels
-        are independent: ``encoded(f, idx) == encoded(f)[idx]`` (to float32 rounding)."""
+        Returns (N, 3) float32 (n + 1)/2 encoded normals, digit-depth convention (a new
+        array). Pixels are independent: ``encoded(f, idx) == encoded(f)[idx]``."""
         h, w = frame.shape[:2]
         self._coords((h, w))
-        bgr = frame.reshape(-1, 3)
         pos = self._pos
         assert pos is not None  # made by _coords
-        if index is not None:
-            bgr = bgr[index]
-            pos = pos[index]
-        a = bgr.astype(np.float32) @ self._w_colour
-        a += pos
+        flat = frame.reshape(-1, 3)
+        if index is None:
+            bgr, a = flat, pos.copy()
+        else:  # np.take gathers faster than fancy indexing (and than take into a buffer)
+            bgr, a = np.take(flat, index, axis=0), np.take(pos, index, axis=0)
+        b, out = self._buffers(a.shape[0])
+        np.matmul(bgr.astype(np.float32), self._w_colour, out=b)
+        a += b
         np.maximum(a, 0, out=a)
-        a = a @ self.w[1]
-        a += self.b[1]
-        np.maximum(a, 0, out=a)
-        out = a @ self._w34
+        np.matmul(a, self.w[1], out=b)
+        b += self.b[1]
+        np.maximum(b, 0, out=b)
+        np.matmul(b, self._w34, out=out)
         out += self._b34
-        return out
+        return out.copy()
 
     def encoded_reference(self, frame: np.ndarray, index: np.ndarray | None = None) -> np.ndarray:
         """The four layers one by one, as the authors run them (float32): what

@@ -44,7 +44,8 @@ class DepthOptions:
     takes the value of the evaluated pixel at its even row and column; the error against
     1 is in docs/benchmarks/latency.md); paper_dilation_px: paper mode evaluates the MLP
     only inside the contact mask dilated by this many pixels, elsewhere the gradients are
-    the reference frames' (None: on every pixel, as the authors did).
+    the reference frames' (None, the default: on every pixel, as the authors did, so their
+    checkpoints see their depth images; the masked variant's error is in latency.md).
     """
 
     mapping: str | os.PathLike
@@ -57,7 +58,7 @@ class DepthOptions:
     saturated_fraction: float = 0.5
     solver_dtype: str = "float32"
     mapping_step: int = 1
-    paper_dilation_px: int | None = 16
+    paper_dilation_px: int | None = None
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -99,6 +100,7 @@ class DepthStage:
         self.lut: NormalLUT | None = None
         if is_paper_mlp(arrays):
             self.mlp = PaperMLP(arrays, str(options.mapping))
+            self.mlp.encoded(np.zeros(FRAME_SHAPE, np.uint8), np.arange(1))  # tables made now, not on frame 1
         else:
             self.lut = NormalLUT.from_arrays(arrays, str(options.mapping))
             if self.lut.background.shape != FRAME_SHAPE:
@@ -107,6 +109,7 @@ class DepthStage:
             # Guarded gradients per LUT cell, once: per frame it is a single table lookup.
             gx, gy, _ = normals_to_gradients(self.lut.flat_lut, options.guards)
             self._glut = np.stack([gx, gy], axis=1).astype(np.float32)
+            self._bg_box = self.lut._bg_shifted.reshape(self.lut.background.shape)  # (H, W, 3) float32
         if options.mode == "paper" and self.mlp is None:
             raise MappingError(f"{options.mapping}: paper mode needs the paper MLP .npz, not a calibrate-depth LUT")
         h, w = FRAME_SHAPE[:2]
@@ -120,8 +123,6 @@ class DepthStage:
         self.reference: np.ndarray | None = None
         self._ref_gx: np.ndarray | None = None  # paper mode: mean reference gradients (outside the mask)
         self._ref_gy: np.ndarray | None = None
-        rows, cols = np.mgrid[0:h, 0:w]
-        self._anchor = ((rows // 2 * 2) * w + cols // 2 * 2).ravel()  # mapping_step 2: the evaluated pixel
         self._dilate = None
         if options.paper_dilation_px:
             import cv2
@@ -221,25 +222,62 @@ class DepthStage:
         clamped = 0
         where = idx
         if self.options.mapping_step == 2:  # evaluate at the even row/column pixel of each 2x2 cell
-            anchors, back = np.unique(self._anchor[idx], return_inverse=True)
-            where = anchors
-        if self.lut is not None:
+            where, back = self._cell_anchors(m)
+        if self.lut is not None and where is idx:
+            self._lut_gradients_in_box(frame, m)
+            vx = None
+        elif self.lut is not None:
             g = self._glut[self.lut.index(frame, where)]
             vx, vy = g[:, 0], g[:, 1]
         else:
             assert self.mlp is not None  # a stage has a LUT or the MLP
             n = decode_paper_normals(self.mlp.encoded(frame, where))
             vx, vy, clamped = normals_to_gradients(n, self.options.guards)
-        if where is not idx:
-            vx, vy = vx[back], vy[back]
-        gx.ravel()[idx] = vx
-        gy.ravel()[idx] = vy
+        if vx is not None:
+            if where is not idx:
+                vx, vy = vx[back], vy[back]
+            gx.ravel()[idx] = vx
+            gy.ravel()[idx] = vy
         h = self.solver.solve(gx, gy, out=self._height)
         if not np.isfinite(h).all():  # cannot happen with guarded gradients; kept as a guard
             return self._fail("non-finite height after integration", int(idx.size))
         exact_depth_image(h, m, self.options.levels_per_px, self._depth)
         detail = f"{clamped} gradient values clamped" if clamped else ""
         return DepthResult(self._depth.copy(), True, detail, h, int(idx.size), clamped)
+
+    def _cell_anchors(self, m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """mapping_step 2: flat indices of the even row/column pixel of every 2x2 cell that
+        holds a mask pixel, and for each mask pixel (in flat order) its cell's position in
+        that list."""
+        h, w = m.shape
+        cells = m.reshape(h // 2, 2, w // 2, 2).any(axis=(1, 3))
+        rows, cols = np.nonzero(cells)
+        anchors = (2 * rows) * w + 2 * cols
+        pos = np.zeros(cells.shape, np.intp)
+        pos[rows, cols] = np.arange(rows.size)
+        back = pos.repeat(2, axis=0).repeat(2, axis=1)[m]
+        return anchors, back
+
+    def _lut_gradients_in_box(self, frame: np.ndarray, m: np.ndarray) -> None:
+        """LUT gradients of the mask pixels into ``_gx`` / ``_gy`` (zero elsewhere), computed on
+        the mask's bounding box with slices instead of gathering each pixel: the same cell
+        index arithmetic as ``NormalLUT.index``, so the same values."""
+        import cv2
+
+        assert self.lut is not None
+        x, y, w, h = cv2.boundingRect(np.ascontiguousarray(m).view(np.uint8))
+        box = (slice(y, y + h), slice(x, x + w))
+        q = frame[box].astype(np.float32)
+        q -= self._bg_box[box]
+        q *= 1.0 / self.lut.bin_width
+        np.clip(q, 0, self.lut.bins - 1, out=q)
+        qi = q.astype(np.intp)
+        b = self.lut.bins
+        cells = (qi[..., 0] * b + qi[..., 1]) * b + qi[..., 2]
+        g = self._glut[cells]  # (h, w, 2)
+        inside = m[box]
+        np.multiply(g[..., 0], inside, out=self._gx[box])
+        np.multiply(g[..., 1], inside, out=self._gy[box])
 
     def _paper_distance(self, frame: np.ndarray, index: np.ndarray | None = None) -> np.ndarray:
         """The authors' integrated map (metres; lower = pressed toward the camera). index:

@@ -95,3 +95,20 @@ def test_paper_mode_evaluates_the_dilated_mask_and_keeps_the_reference_outside(p
     assert diff[~m].max() == 0 and diff[m].mean() < 0.1 * max(1.0, float(b.depth[m].mean()))
     with pytest.raises(ValueError, match="paper_dilation_px"):
         DepthOptions(paper_mlp_path, mode="paper", paper_dilation_px=-1)
+
+
+def test_lut_gradients_in_the_mask_box_equal_full_evaluation_inside_the_mask(fots_lut_path):
+    """The LUT path works on the mask's bounding box; inside the mask it gives what
+    evaluating every pixel gives, zero outside (exact mode)."""
+    st = DepthStage(DepthOptions(fots_lut_path))
+    img = cv2.imread(str(shared_data("fots_digit", "ball_presses", "0040.png")))
+    frame320 = cv2.resize(img, (240, 320), interpolation=cv2.INTER_AREA) if img.shape[:2] != (320, 240) else img
+    m = np.zeros((320, 240), bool)
+    cv2.circle(m.view(np.uint8), (130, 150), 45, 1, -1)
+    m[10:20, 200:230] = True  # a second blob: the box spans both
+    res = st.process(frame320, m)
+    assert res.ok
+    full = st._glut[st.lut.index(frame320)]  # every pixel
+    gx = full[:, 0].reshape(320, 240)
+    np.testing.assert_array_equal(st._gx[m], gx[m])
+    assert not st._gx[~m].any() and not st._gy[~m].any()

@@ -38,7 +38,7 @@ def _digit_backgrounds():
     return files
 
 
-@pytest.mark.parametrize("downscale", [1, 2])
+@pytest.mark.parametrize("downscale", [1, 2, 4])
 def test_every_real_digit_background_reads_no_contact(downscale):
     rng = np.random.default_rng(0)
     for path in _digit_backgrounds():
@@ -50,9 +50,10 @@ def test_every_real_digit_background_reads_no_contact(downscale):
             r = gate.update(_noisy(img, rng, gain))
             assert not r.contact, f"{path.name} (gain {gain}) read as contact, area {r.area_px} px"
             assert not r.saturation_seen
+            assert not r.mismatch and not r.invalid, (path.name, gain, r)
 
 
-@pytest.mark.parametrize("downscale", [1, 2])
+@pytest.mark.parametrize("downscale", [1, 2, 4])
 def test_every_real_aurova_frame_reads_contact(aurova_dir, downscale):
     bg = cv2.imread(str(shared_data("digit_backgrounds", "aurova_background_b.png")))
     frames = sorted((aurova_dir / "images").glob("*.png"), key=lambda p: int(p.stem))
@@ -63,6 +64,7 @@ def test_every_real_aurova_frame_reads_contact(aurova_dir, downscale):
         gate.capture_background([bg])
         r = gate.update(cv2.imread(str(path)))
         assert r.contact, f"{path.name} read as no contact (area {r.area_px} px)"
+        assert not r.mismatch and not r.invalid, (path.name, r)
         assert r.mask.shape == (320, 240) and r.mask.dtype == np.uint8
         assert set(np.unique(r.mask)) <= {0, 255}
         assert r.area_px == int(np.count_nonzero(r.mask))

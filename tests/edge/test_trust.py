@@ -13,14 +13,22 @@ import math
 import cv2
 import numpy as np
 import pytest
-
-from tactile_force.edge import ContactGate, Flags, ForceRuntime, FrameSource, GateOptions, RuntimeOptions, Sensor
-from tactile_force.edge import TimedFrame
+from tactile_force.edge import (
+    ContactGate,
+    Flags,
+    ForceRuntime,
+    FrameSource,
+    GateOptions,
+    RuntimeOptions,
+    Sensor,
+    TimedFrame,
+)
 from tactile_force.edge.data_stats import DataStats, DataStatsCheck, compute_data_stats
 
 from tests.conftest import shared_data
 
-JUDGING = Flags.NO_CONTACT | Flags.INVALID_INPUT | Flags.BACKGROUND_MISMATCH | Flags.OUT_OF_DISTRIBUTION | Flags.SATURATED
+JUDGING = (Flags.NO_CONTACT | Flags.INVALID_INPUT | Flags.BACKGROUND_MISMATCH | Flags.OUT_OF_DISTRIBUTION
+           | Flags.SATURATED)
 HOME = "aurova_background_b.png"  # the AUROVA unit and session (the grasp's, and the bundle's training background)
 
 

@@ -69,6 +69,9 @@ class MetaFile:
         if state["sample"] == k and phase == "meta_done":
             die()
 
+    def fileno(self) -> int:
+        return self.fh.fileno()
+
     def close(self) -> None:
         self.fh.close()
 
