@@ -14,8 +14,16 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 from .bundle import Bundle, load_bundle, read_manifest, sha256_file, write_bundle
-from .errors import (AcceleratorUnavailableError, BundleError, DatasetError, FrameError, MissingExtraError, SceneError,
-                     SourceError, TactileForceError)
+from .errors import (
+    AcceleratorUnavailableError,
+    BundleError,
+    DatasetError,
+    FrameError,
+    MissingExtraError,
+    SceneError,
+    SourceError,
+    TactileForceError,
+)
 from .frames import FRAME_SHAPE, FrameSource, SourceStats, TimedFrame, check_frame
 from .manifest import DEPTH_VARIANTS, PRECISIONS, VARIANTS, InputKind, Manifest, Precision, Variant
 from .reading import MAX_VALID_FORCE_N, MIN_VALID_FORCE_N, Flags, ForceReading, StageLatency
@@ -89,6 +97,17 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time these load lazily
     from .runtime import ForceRuntime, RuntimeOptions, RuntimeStats, Sensor, plan_stages
     from .scene import Scene, build_scene, default_bundle_path, describe_scene, load_scene
     from .sources import CameraSource, ReplayFolderSource, StreamLost, VideoFileSource, load_background, open_v4l2
-    from .synthetic import (ContactSpec, DatasetOptions, DatasetSummary, IndenterSplit, SyntheticFrame, VirtualDigit,
-                            VirtualDigitOptions, VirtualDigitSource, generate_dataset, indenter_split, paper_split,
-                            split_ids)
+    from .synthetic import (
+        ContactSpec,
+        DatasetOptions,
+        DatasetSummary,
+        IndenterSplit,
+        SyntheticFrame,
+        VirtualDigit,
+        VirtualDigitOptions,
+        VirtualDigitSource,
+        generate_dataset,
+        indenter_split,
+        paper_split,
+        split_ids,
+    )

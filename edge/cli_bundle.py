@@ -76,12 +76,12 @@ def describe_manifest(b) -> list[str]:  # b: Bundle
     if m.error:
         e = m.error
         if e.vs_truth:
-            lines.append(f"error     vs labels RE {e.vs_truth.re_mean:.3f} +- {e.vs_truth.re_std:.3f}, "
-                         f"MAE {e.vs_truth.mae_mean:.3f} N ({e.vs_truth.n} frames of {e.data or '?'})")
+            lines.append(f"error     vs labels RE {_num(e.vs_truth.re_mean)} +- {_num(e.vs_truth.re_std)}, "
+                         f"MAE {_num(e.vs_truth.mae_mean)} N ({e.vs_truth.n} frames of {e.data or '?'})")
         if e.vs_fp32:
             lines.append(f"error     vs fp32 max {e.vs_fp32.max_abs_diff_n:.4f} N, mean {e.vs_fp32.mean_abs_diff_n:.4f} N")
         if e.vs_teacher:
-            lines.append(f"error     vs teacher RE {e.vs_teacher.re_mean:.3f}, MAE {e.vs_teacher.mae_mean:.3f} N")
+            lines.append(f"error     vs teacher RE {_num(e.vs_teacher.re_mean)}, MAE {_num(e.vs_teacher.mae_mean)} N")
     if m.force_calibration:
         c = m.force_calibration
         lines.append(f"calib     {c.method} force calibration, {len(c.raw_n)} knots, fitted on {c.frames} frames "
@@ -95,6 +95,10 @@ def describe_manifest(b) -> list[str]:  # b: Bundle
     if p.note:
         lines.append(f"note      {p.note}")
     return lines
+
+
+def _num(x: float | None) -> str:
+    return "n/a" if x is None or x != x else f"{x:.3f}"
 
 
 def _verify(path: Path) -> int:

@@ -506,7 +506,7 @@ class ContactGate:
             explained = self._motion_explained(ref) if onset and self._fit_frac < 0.98 else 0.0
             if explained > o.motion_explained:
                 reason, kind = (f"the gel or camera moved: {100 * explained:.0f} % of the difference is a shift or "
-                                "rotation of the background", "global")
+                                "rotation of the background", "motion")
             elif onset and frac > 0 and self._dark_share(y, ref) > 0.04:
                 reason, kind = ("part of the gel is covered or dark (occlusion, a cable or finger in view, "
                                 "a failed LED?)", "global")
@@ -593,7 +593,7 @@ class ContactGate:
         if kind == "photometric":
             blob_free = frac < o.off_area_frac
         else:
-            blob_free = self._borders_changed() >= 3 or "moved" in self._mismatch
+            blob_free = kind == "motion" or self._borders_changed() >= 3
         self._stable = self._stable + 1 if (stable and blob_free) else 0
         if o.relearn_frames and self._stable >= o.relearn_frames:
             reason = self._mismatch

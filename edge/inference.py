@@ -16,9 +16,9 @@ from pathlib import Path
 import numpy as np
 
 from .bundle import Bundle, load_bundle
-from .manifest import InputKind
 from .errors import BundleError, FrameError
 from .frames import FRAME_COLS, FRAME_ROWS, check_batch
+from .manifest import InputKind
 
 RGB_SHAPE = (FRAME_ROWS, FRAME_COLS, 3)
 DEPTH_SHAPE = (FRAME_ROWS, FRAME_COLS, 1)

@@ -201,13 +201,16 @@ class Parity:
 
 @dataclass
 class ErrorFigures:
-    """The paper's metrics against reference forces (edge.metrics.ErrorStats): RE and MAE (N)."""
+    """The paper's metrics against reference forces (edge.metrics.ErrorStats): RE and MAE (N).
+
+    ``None`` (NaN in memory) where not measurable, e.g. RE when every reference is ~0 N.
+    """
 
     n: int
-    re_mean: float
-    re_std: float
-    mae_mean: float
-    mae_std: float
+    re_mean: float | None
+    re_std: float | None
+    mae_mean: float | None
+    mae_std: float | None
     n_excluded_re: int = 0
 
 
@@ -233,9 +236,10 @@ class ErrorReport:
 
     def score(self) -> float:
         """Lower is more accurate: RE vs the labels, inf when not measured (the ladder's key)."""
-        if self.vs_truth is None or not math.isfinite(self.vs_truth.re_mean):
+        re = self.vs_truth.re_mean if self.vs_truth is not None else None
+        if re is None or not math.isfinite(re):
             return math.inf
-        return self.vs_truth.re_mean
+        return re
 
 
 @dataclass

@@ -6,7 +6,6 @@ Heavy imports (torch, onnx) happen inside the main functions, so ``--help`` is i
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 

@@ -21,12 +21,20 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from torch import nn
-
 from tactile_force.edge.bundle import Bundle, write_bundle
-from tactile_force.edge.manifest import (Architecture, InputKind, InputSpec, Manifest, OutputSpec, Parity, Precision,
-                                        Provenance, Variant)
 from tactile_force.edge.errors import CheckFailedError, TactileForceError
+from tactile_force.edge.manifest import (
+    Architecture,
+    InputKind,
+    InputSpec,
+    Manifest,
+    OutputSpec,
+    Parity,
+    Precision,
+    Provenance,
+    Variant,
+)
+from torch import nn
 
 from .calibration import CalibrationData, random_frames
 from .checkpoint import model_from_checkpoint

@@ -26,13 +26,12 @@ from pathlib import Path
 
 import numpy as np
 from onnxruntime.quantization import CalibrationDataReader
-
 from tactile_force.edge.bundle import Bundle, load_bundle, write_bundle
-from tactile_force.edge.manifest import DiffFigures, ErrorFigures, ErrorReport, Precision, Quantization, SourceRef
-from tactile_force.edge.typed_json import from_json
 from tactile_force.edge.errors import TactileForceError, require
+from tactile_force.edge.manifest import DiffFigures, ErrorFigures, ErrorReport, Precision, Quantization, SourceRef
 from tactile_force.edge.metrics import error_stats
 from tactile_force.edge.progress import progress
+from tactile_force.edge.typed_json import from_json
 
 from .calibration import CalibrationData, CalibrationError
 from .graph import name_nodes, op_counts, producer_chain

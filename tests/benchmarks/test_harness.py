@@ -183,3 +183,18 @@ def test_memory_source_stamps_arrival_and_ends():
     assert [f.index for f in got] == [0, 1, 2, 3] and [f.arrival_ns for f in got] == [10, 15, 20, 25]
     assert [int(f.frame[0, 0, 0]) for f in got] == [0, 1, 2, 0]  # cycled, no copies needed
     assert np.shares_memory(got[3].frame, frames) and src.read() is None
+
+
+def test_paced_memory_source_stamps_arrival_and_skips_what_a_late_reader_missed():
+    import time
+
+    from benchmarks.latency_page import PacedMemorySource
+
+    frames = np.zeros((2, 320, 240, 3), np.uint8)
+    src = PacedMemorySource(frames, fps=1000.0, n=200)
+    a = src.read()
+    assert a.index == 0 and a.arrival_ns >= a.timestamp_ns and a.meta["superseded"] == []
+    time.sleep(0.02)  # 20 frame periods: the reader is late
+    b = src.read()
+    assert b.index >= 10 and b.arrival_ns == b.timestamp_ns  # it waited in the buffer since it fell due
+    assert [k for k, _ in b.meta["superseded"]] == list(range(1, b.index)) and src.stats.dropped == b.index - 1

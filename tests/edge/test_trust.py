@@ -225,6 +225,16 @@ def test_a_long_press_during_a_step_is_never_absorbed(model, aurova_dir):
     assert all(r.flags & Flags.BACKGROUND_MISMATCH and math.isnan(r.force_n) for r in readings)
 
 
+def test_another_unit_plugged_in_is_relearnt_once_stable(model, caplog):
+    other = _unit("tacto_bg_digit_240_320.jpg")
+    with caplog.at_level(logging.WARNING, logger="tactile_force.edge.gate"):
+        readings, gate, _ = _run(model, [other] * 15, _unit(HOME), options=GateOptions(relearn_frames=10))
+    flags = [r.flags for r in readings]
+    assert all(f & Flags.BACKGROUND_MISMATCH for f in flags[:10]) and gate.relearned == 1
+    assert all(f == Flags.NO_CONTACT for f in flags[10:]) and gate.state == "ok"
+    assert caplog.text.count("background mismatch") == 1 and "re-learnt" in caplog.text
+
+
 def test_mismatch_clears_when_the_frame_fits_again(model):
     bg = _unit(HOME)
     other = _unit("fots_digit_bg.png")

@@ -33,10 +33,12 @@ def test_export_quantize_show_verify(ours, module_tmp, aurova, capsys):
     fp32, int8 = module_tmp / "cli_fp32", module_tmp / "cli_int8"
     assert main(["export", str(ours), "--out", str(fp32), "--parity-data", str(aurova)]) == 0
     out = capsys.readouterr().out
-    assert "rgbmod, fp32, width 0.25, input scale 0.25" in out and "on 11 frames" in out
+    assert "variant   rgbmod   precision fp32" in out and "width 0.25, input scale 0.25" in out
+    assert "on 11 frames" in out
     assert main(["quantize", str(fp32), "--out", str(int8), "--calib", str(aurova)]) == 0
     out = capsys.readouterr().out
-    assert "int8-static" in out and "vs fp32 on 11 frames" in out and "vs ground truth (quantized): RE" in out
+    assert "precision int8-static" in out and "error     vs fp32 max" in out and "error     vs labels RE" in out
+    assert "(11 frames of" in out
     assert main(["bundle", "show", str(int8)]) == 0
     out = capsys.readouterr().out
     assert "precision int8-static" in out and "verified" in out and "unit test" in out
