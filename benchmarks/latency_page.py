@@ -105,7 +105,7 @@ class PacedMemorySource(FrameSource):
         i = self.next
         due = self.t0 + i * self.period
         superseded: list[tuple[int, int]] = []
-        arrival = due  # a frame the reader is late for waited in the buffer since it was due
+        arrival = due  # a frame the reader is late for waited in the buffer since it fell due
         if due > now:
             time.sleep((due - now) / 1e9)
             arrival = time.monotonic_ns()  # like a camera grab: stamped when the frame is in hand
@@ -115,6 +115,7 @@ class PacedMemorySource(FrameSource):
                 superseded = [(k, self.t0 + k * self.period) for k in range(i, newest)]
                 i, due = newest, self.t0 + newest * self.period
                 self.stats.dropped += len(superseded)
+            arrival = due
         self.next = i + 1
         self.stats.frames += 1
         return TimedFrame(self.frames[i % len(self.frames)], due, i, meta={"superseded": superseded},
