@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
@@ -80,8 +79,8 @@ def main(argv: list[str] | None = None) -> int:
             f"those 11; held-out: the 11 other frames of the same grasp ({HELDOUT.name}, 1.50-11.93 N), report only. "
             "Both sets come from ONE grasp of ONE indenter on ONE sensor, interleaved in time: the held-out figures "
             "say the map generalises to other frames of that grasp, not to other objects or sensors.")
-    text = header("Force calibration of the default bundle on real DIGIT frames", "python -m benchmarks.calibration_study",
-                  describe_machine(), note)
+    text = header("Force calibration of the default bundle on real DIGIT frames",
+                  "python -m benchmarks.calibration_study", describe_machine(), note)
     text += markdown_table(["method", "LOO RE before", "LOO MAE before (N)", "LOO RE after", "LOO MAE after (N)",
                             "held-out RE before", "held-out MAE before (N)", "held-out RE after",
                             "held-out MAE after (N)"], rows) + "\n\n"

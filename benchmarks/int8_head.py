@@ -24,7 +24,6 @@ SHARED = REPO.parent / "shared" / "data"
 
 def _real_frames() -> np.ndarray:
     import cv2
-
     from tactile_force.edge import AuthorsDataset
 
     ds = AuthorsDataset(SHARED / "aurova_digit_grasp")
@@ -60,9 +59,16 @@ def _latency(path: Path, runs: int) -> tuple[float, float]:
 def study(models: list[tuple[str, float, int, Path | None]], runs: int = 100) -> list[list]:
     """models: (label, width, k, trained checkpoint or None for random weights, seed 0)."""
     import torch
-
-    from tactile_force.export import (CalibrationData, ExportOptions, ForceNet, ModelSpec, QuantizeOptions,
-                                      build_model, export_bundle, quantize_bundle)
+    from tactile_force.export import (
+        CalibrationData,
+        ExportOptions,
+        ForceNet,
+        ModelSpec,
+        QuantizeOptions,
+        build_model,
+        export_bundle,
+        quantize_bundle,
+    )
     from tactile_force.export.onnx_export import ort_session, run_ort
 
     real = _real_frames()

@@ -127,7 +127,8 @@ def run_case(model, case: Case, background: np.ndarray) -> Outcome:
     raw = np.array([r.raw_force_n for r in readings])
     flags = [r.flags.names() for r in readings]
     ran = np.array([Flags.NO_CONTACT not in r.flags and "model returned" not in r.detail and not
-                    (Flags.INVALID_INPUT in r.flags) for r in readings])
+                    (Flags.INVALID_INPUT in r.flags) and Flags.BACKGROUND_MISMATCH not in r.flags  # CNN not run
+                    for r in readings])
     nonfinite = sum(1 for r in readings if "model returned" in r.detail)
     nonfinite += int(np.count_nonzero(~np.isfinite(raw[ran])))
     ok = 1.0

@@ -553,7 +553,7 @@ class ContactGate:
         gain = (n * sxy - sx * sy) / np.maximum(den, 1e-3)
         off = (sy - gain * sx) / n
         frac = float(np.mean(np.abs(ys - (x * gain + off)).max(axis=1) < self.options.fit_tolerance))
-        return frac >= 0.7 and frac >= self._fit_frac + 0.3
+        return frac >= max(0.4, self._fit_frac + 0.3)
 
     def _motion_explained(self, ref: _Reference) -> float:
         """Share of the residual energy a shift/rotation of the background explains (0..1)."""

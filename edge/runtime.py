@@ -13,6 +13,10 @@ the depth stage (depth bundles only) and one ``predict`` call for all sensors in
 - wrong shape/dtype, NaN, empty, all-dark/all-white frame, a failed depth stage -> ``invalid_input``;
 - estimate < 1 N -> ``below_range`` (clamped at 0); >= 15 N or gel saturation seen -> ``saturated``
   (clamped at 15 N, a lower bound);
+- a frame the gate cannot judge -> ``background_mismatch`` (it no longer fits the background) or
+  ``invalid_input`` (RGB order, uniform, noise burst, blurred), force nan, the CNN is not run;
+  a frame outside the bundle's ``data_stats`` -> ``out_of_distribution`` (force kept), a contact
+  beyond them -> ``saturated`` (docs/runtime.md, "Flags");
 - a source that raises SourceError gives one ``invalid_input`` reading naming the error and
   is dropped; the other sensor keeps being served.
 

@@ -16,12 +16,10 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
-
 from tactile_force.edge import FrameError
 from tactile_force.edge.gate import ContactGate, GateOptions
 
 from tests.conftest import shared_data
-
 
 GELSIGHT_MINI = GateOptions.gelsight_mini()  # threshold 28 + convex hulls (larger halo than DIGIT)
 

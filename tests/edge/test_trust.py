@@ -181,7 +181,8 @@ def test_rgb_order_is_invalid_input_naming_the_colour_order(model, aurova_dir):
     frames = [f[..., ::-1].copy() for f, _ in _aurova(aurova_dir)[::3]] + [bg[..., ::-1].copy()]
     readings, _, _ = _run(model, frames, bg)
     assert not _silent(readings)
-    assert all(r.flags & Flags.INVALID_INPUT and "colour order" in r.detail for r in readings[-1:])
+    assert all(r.flags & Flags.INVALID_INPUT and "colour order" in r.detail for r in readings), \
+        [(r.flags.names(), r.detail[:60]) for r in readings]
 
 
 def test_uniform_and_noisy_frames_are_invalid_input(model):
@@ -346,3 +347,21 @@ def test_without_data_stats_the_check_is_skipped_with_one_warning(caplog):
         chk = DataStatsCheck(None, "old-bundle")
     assert not chk.active and chk.out_of_distribution(np.zeros((20, 15, 3), np.uint8)) == ""
     assert caplog.text.count("no data_stats") == 1 and "old-bundle" in caplog.text
+
+
+def test_data_stats_written_into_a_bundle_are_used_by_the_runtime(stats, tmp_path):
+    from tactile_force.edge import OnnxForceModel
+    from tactile_force.edge.bundle import load_bundle, write_bundle
+    from tactile_force.edge.scene import default_bundle_path
+
+    src = load_bundle(default_bundle_path())
+    src.manifest.data_stats = stats
+    write_bundle(tmp_path / "b", src.onnx_path.read_bytes(), src.manifest)
+    m = OnnxForceModel(tmp_path / "b")
+    assert m.bundle.manifest.data_stats == stats
+    video = sorted(shared_data("gelsight_wedge_grasps", "example_data").glob("*/golf_ball_1.avi"))[0]
+    frames = _wedge(video)
+    readings, _, _ = _run(m, frames[1:], frames[0])
+    assert any(r.flags & Flags.OUT_OF_DISTRIBUTION and "outside what the bundle's data covered" in r.detail
+               for r in readings)
+
