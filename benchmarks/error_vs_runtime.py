@@ -117,7 +117,7 @@ def run(args, argv) -> None:
                         "MAE real (N)", "p50 ms", "p99 ms"], table) if rows else "No trained bundles yet.", "",
         f"Not trained (no benchmarks/cache/models/<config>/record.json): {', '.join(missing) or 'none'}.", "",
         "![Pareto plot](error_vs_runtime.png)", "",
-        "## Real sensor: the default bundle before and after calibrate-force", "",
+        "## Per-sensor calibration and distilled students", "",
         CALIBRATION_POINTER, "",
         "## RE per 1 N force bin (synthetic test split)", "",
         markdown_table(["config", "precision"] + bins, bin_rows) if rows else "", "",
@@ -142,8 +142,8 @@ def run(args, argv) -> None:
 CALIBRATION_POINTER = ("`tactile-force calibrate-force` fitted on the 11 real AUROVA frames, leave-one-out and on the "
                        "11 held-out frames of the same grasp: [calibration.md](calibration.md) "
                        "(`python -m benchmarks.calibration_study`). Distilled students (`tactile-force compress`) "
-                       "against their teacher and against students trained with labels: not measured yet "
-                       "(see docs/calibration.md).")
+                       "against their teacher and against the same students trained with labels, on the held-out "
+                       "synthetic indenters: [distillation.md](distillation.md) (`python -m benchmarks.distill_study`).")
 
 NOTE = """Models: the reference recipe (`python -m benchmarks.reference`), trained from scratch on
 SYNTHETIC virtual DIGIT frames only (S1 split: 14 train / 2 val / 2 held-out test indenters).

@@ -33,6 +33,8 @@ from .latency import (
 from .machine import CpuWindow, MachineState, command_line, describe_machine, header
 from .stats import Percentiles, markdown_table, percentiles
 
+T = TypeVar("T")
+
 NOTES = """Frames: 64 virtual DIGIT frames in contact (18 paper indenters + spheres + a cylinder,
 1.5-14.5 N), rendered once, held in memory and read by the runtime through an in-memory
 FrameSource (benchmarks.latency.MemorySource), so neither PNG decoding nor rendering is
@@ -75,7 +77,7 @@ class Section:
         return f"## {self.title}\n\n{self.body}{state}\n"
 
 
-def _watched(fn: Callable[[], object]) -> tuple[object, MachineState]:
+def _watched(fn: Callable[[], T]) -> tuple[T, MachineState]:
     w = CpuWindow()
     out = fn()
     return out, w.stop()

@@ -108,8 +108,9 @@ def header(title: str, command: str, machine: Machine, notes: str = "") -> str:
 # ----------------------------------------------------------------------------- busy or not
 
 #: Share of the machine's CPU time (all cores) other processes may use during a measurement
-#: before the machine counts as busy: on an idle host it stays near 0.
-BUSY_SHARE = 0.15
+#: before the machine counts as busy: on an idle host it stays near 0; at 12 % (a quarter of
+#: one core of two) the compact model's p99 already doubled here.
+BUSY_SHARE = 0.05
 
 
 def cpu_mhz() -> float:

@@ -139,6 +139,9 @@ def configure_quantize(p: argparse.ArgumentParser) -> None:
                    help="refuse calibration with fewer frames (>= 1, default 10)")
     p.add_argument("--max-frames", type=_whole(1), default=500,
                    help="use at most this many calibration frames (>= 1, default 500; there is no 'unlimited')")
+    p.add_argument("--background", type=Path,
+                   help="no-contact frame of the calibration frames' sensor: records their statistics in the "
+                        "manifest so the runtime flags out_of_distribution frames")
     p.add_argument("--force", action="store_true", help="replace --out if it exists")
 
 
@@ -152,8 +155,11 @@ def main_quantize(args: argparse.Namespace) -> int:
     opts = QuantizeOptions(mode=args.mode, method=args.method, per_channel=not args.per_tensor,
                            keep_float=list(args.keep_float), percentile=args.percentile, histogram_bins=args.bins,
                            min_calibration_frames=args.min_frames, max_calibration_frames=args.max_frames,
-                           overwrite=args.force, show_progress=True)
+                           overwrite=args.force, show_progress=True, background=args.background)
     b = quantize_bundle(args.bundle, args.out, opts, calibration=args.calib, eval_data=args.eval)
+    if b.manifest.data_stats is None:
+        print("note: no data statistics recorded (pass --background NO_CONTACT.png): the runtime cannot flag "
+              "frames outside the calibration data as out_of_distribution", file=sys.stderr)
     from tactile_force.edge.cli_bundle import describe_manifest
 
     print(f"wrote {b.path}")

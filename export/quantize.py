@@ -69,6 +69,10 @@ class QuantizeOptions:
     overwrite: bool = False
     show_progress: bool = False
     float_head_inputs: bool = True
+    #: a no-contact frame of the sensor the calibration frames come from (HxWx3 uint8 BGR or
+    #: an image path): with it, statistics of the calibration frames go into the manifest's
+    #: ``data_stats`` and the runtime flags frames outside them ``out_of_distribution``
+    background: object = None
 
 
 #: Ops between the trunk's feature maps and the final linear layer: global pooling, reshapes
@@ -307,4 +311,23 @@ def quantize_bundle(src: Bundle | str | os.PathLike, dest: str | os.PathLike, op
     manifest.error = _error_report(fp32_bytes, q_bytes, evaluation, same) if evaluation is not None else None
     manifest.provenance = dataclasses.replace(m.provenance, quantized_from=SourceRef(bundle=m.name, sha256=m.sha256),
                                               quantize_seconds=round(time.perf_counter() - t0, 2))
+    if o.background is not None and calib is not None and "rgb" in calib.inputs:
+        manifest.data_stats = calibration_data_stats(calib, o.background)
     return write_bundle(dest, q_bytes, manifest, overwrite=o.overwrite)
+
+
+def calibration_data_stats(data: CalibrationData, background: object):
+    """Manifest ``data_stats`` of calibration frames seen against a no-contact ``background``."""
+    from tactile_force.edge.data_stats import compute_data_stats
+    from tactile_force.edge.frames import check_frame
+
+    if isinstance(background, (str, os.PathLike)):
+        import cv2
+
+        img = cv2.imread(os.fspath(background), cv2.IMREAD_COLOR)
+        if img is None:
+            raise QuantizeError(f"background {background}: not a readable image; expected a no-contact frame "
+                                "(320x240 BGR PNG) of the sensor the calibration frames come from")
+        background = img
+    bg = check_frame(background, "background")
+    return compute_data_stats(list(data.inputs["rgb"]), bg, source=data.source)

@@ -183,3 +183,18 @@ def test_bad_mode_and_non_fp32_source(int8, tmp_path, aurova):
         quantize_bundle(int8, tmp_path / "q", QuantizeOptions(mode="int4"), calibration=aurova)
     with pytest.raises(QuantizeError, match="is a int8-static bundle"):
         quantize_bundle(int8, tmp_path / "q", calibration=aurova)
+
+
+def test_quantize_with_a_background_records_data_statistics(compact, module_tmp, aurova):
+    from tactile_force.edge import load_bundle
+    from tests.conftest import shared_data
+
+    bg = shared_data("digit_backgrounds", "aurova_background_b.png")
+    b = quantize_bundle(compact, module_tmp / "with_stats", QuantizeOptions(background=bg), calibration=aurova)
+    stats = load_bundle(b.path).manifest.data_stats  # read back through the typed manifest
+    assert stats is not None and stats.frames == 11 and stats.contact_frames == 11
+    assert len(stats.cell_lo) == stats.thumb_rows * stats.thumb_cols * 3
+    assert stats.contact_area_frac_max is not None and 0 < stats.contact_area_frac_max < 1
+    with pytest.raises(QuantizeError, match="not a readable image"):
+        quantize_bundle(compact, module_tmp / "bad_bg", QuantizeOptions(background=aurova / "nope.png"),
+                        calibration=aurova)
