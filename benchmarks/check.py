@@ -146,6 +146,7 @@ def run_check(measure_fn: Measure | None = None, frames: int = 1000, budget_ms: 
             break
         if k + 1 < repeats:
             sleep(pause_s)
+    assert kept is not None  # at least one attempt ran
     which, best, measured = kept
     if best.stages[JUDGED].p99 <= budget_ms:
         verdict = Verdict.PASS

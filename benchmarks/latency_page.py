@@ -15,6 +15,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TypeVar
 
 import numpy as np
 from tactile_force.edge.frames import FrameSource, TimedFrame
@@ -354,7 +355,7 @@ def latency_page(args, argv: list[str], measure_fn: Callable[[LatencyCase], Late
     rgbd = by.get(("RGBmod+D (w0.25, 1/4)", "onnxruntime", "int8-static", 1))
     exact_mlp = [r for r in depth_rows if r[0] == "paper MLP" and r[1] == "exact, every mask pixel"]
     exact_mlp2 = [r for r in depth_rows if r[0] == "paper MLP" and r[1] == "exact, mapping_step 2"]
-    paper16 = [r for r in depth_rows if r[0].startswith("paper MLP, paper") and "16" in r[1]]
+    paper16 = [r for r in depth_rows if str(r[0]).startswith("paper MLP, paper") and "16" in str(r[1])]
     two_first = [r for r in two_rows if r[0] == "two sensors"]
     one = two_rows[0]
     g = drow_s

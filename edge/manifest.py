@@ -383,8 +383,13 @@ def _pick(d: Any, cls: type, *, rename: dict[str, str] | None = None) -> dict[st
     if not isinstance(d, dict):
         raise TypeError(f"expected an object for {cls.__name__}, got {type(d).__name__}")
     names = {f.name for f in fields(cls)}
-    rename = rename or {}
-    return {rename.get(k, k): v for k, v in d.items() if rename.get(k, k) in names}
+    ren: dict[str, str] = rename or {}
+    out: dict[str, Any] = {}
+    for key, value in d.items():
+        name = ren.get(str(key), str(key))
+        if name in names:
+            out[name] = value
+    return out
 
 
 def _migrate_v1(raw: dict[str, Any]) -> dict[str, Any]:

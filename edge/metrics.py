@@ -10,8 +10,8 @@ left-closed: bin k holds k <= f_gt < k + 1.
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Sequence
 from dataclasses import asdict, dataclass, field
-from typing import Iterable, Sequence
 
 import numpy as np
 

@@ -14,15 +14,24 @@ _require("torch", "export", "tactile_force.export (checkpoint loading and ONNX e
 _require("onnx", "export", "tactile_force.export (ONNX export and quantization)")
 
 from .calibration import CalibrationData, CalibrationError, random_frames  # noqa: E402
-from .checkpoint import (Checkpoint, CheckpointError, load_checkpoint, load_into, model_from_checkpoint,  # noqa: E402
-                         save_checkpoint)
+from .checkpoint import Checkpoint, CheckpointError, load_checkpoint, load_into, model_from_checkpoint, save_checkpoint  # noqa: E402
 from .graph import name_nodes, op_counts, ort_optimized_ops  # noqa: E402
 from .macs import MacCount, count_macs  # noqa: E402
 from .onnx_export import ExportOptions, ParityError, ParityResult, export_bundle, to_onnx  # noqa: E402
 from .preprocess import ForceNet, Preprocess, fold_input_scaling, input_convs, network_hw, scale_factor  # noqa: E402
 from .quantize import FrameCalibrationReader, QuantizeError, QuantizeOptions, quantize_bundle  # noqa: E402
-from .zoo import (VARIANT_INPUTS, D, Dmod, ModelSpec, RGBmod, RGBmodD, UnknownVariantError, build_model,  # noqa: E402
-                  check_variant, fold_linear_head)
+from .zoo import (  # noqa: E402
+                         VARIANT_INPUTS,
+                         D,
+                         Dmod,
+                         ModelSpec,
+                         RGBmod,
+                         RGBmodD,
+                         UnknownVariantError,
+                         build_model,
+                         check_variant,
+                         fold_linear_head,
+)
 
 __all__ = [
     "CalibrationData", "CalibrationError", "Checkpoint", "CheckpointError", "D", "Dmod", "ExportOptions",

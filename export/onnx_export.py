@@ -133,6 +133,8 @@ def to_onnx(net: ForceNet, opset: int = 18) -> bytes:
                                      dynamic_shapes=dyn, opset_version=opset, verbose=False, optimize=True)
         finally:
             logging.getLogger("torch.onnx").setLevel(level)
+    if prog is None:
+        raise TactileForceError("torch.onnx.export returned no program; cannot export this model")
     model = prog.model_proto
     name_nodes(model)
     del model.metadata_props[:]

@@ -21,10 +21,9 @@ from __future__ import annotations
 import copy
 
 import torch
-from torch import nn
-
 from tactile_force.edge.errors import TactileForceError
 from tactile_force.edge.frames import FRAME_SHAPE
+from torch import nn
 
 from .zoo import INPUT_CHANNELS, VARIANT_INPUTS, ModelSpec, RGBmodD, check_variant, fold_linear_head
 
@@ -138,5 +137,6 @@ class ForceNet(nn.Module):
             raise TactileForceError(f"{self.spec.variant} takes inputs {self.input_names}, got {len(frames)} tensors")
         xs = [self.pre[n](f) for n, f in zip(self.input_names, frames)]
         if self.folded:
-            return self.head(torch.cat(self.model.features(*xs), dim=1)).reshape(-1)
+            features = self.model.features(*xs)  # type: ignore[operator]  # ResNet-18 variants in zoo.py
+            return self.head(torch.cat(features, dim=1)).reshape(-1)
         return self.model(*xs).reshape(-1)

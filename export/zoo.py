@@ -14,10 +14,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import torch
-from torch import nn
-
-from tactile_force.edge.manifest import VARIANTS
 from tactile_force.edge.errors import TactileForceError
+from tactile_force.edge.manifest import VARIANTS
+from torch import nn
 
 #: Network inputs of each variant, in forward() order; 'rgb' has 3 channels, 'depth' 1.
 VARIANT_INPUTS: dict[str, tuple[str, ...]] = {

@@ -6,11 +6,27 @@ the function that needs it and a missing one raises MissingExtraError naming the
 """
 
 from .digit import RESOLUTIONS, DigitOptions, DigitSource, intensity_code, reset_usb_device
-from .discovery import (AttachedDevice, DiscoveryResult, classify, discover, find_digit, find_gelsight_mini, scan_pyusb,
-                        udev_rules_path)
+from .discovery import (
+                        AttachedDevice,
+                        DiscoveryResult,
+                        classify,
+                        discover,
+                        find_digit,
+                        find_gelsight_mini,
+                        scan_pyusb,
+                        udev_rules_path,
+)
 from .gelsight import SDK_CROP_FRACTION, GelSightMiniOptions, GelSightMiniSource, crop_box
-from .hid_scale import (G, HidScale, ScaleOptions, ScaleReading, ScaleReportError, ScaleStatus, find_scales,
-                        parse_scale_report)
+from .hid_scale import (
+                        G,
+                        HidScale,
+                        ScaleOptions,
+                        ScaleReading,
+                        ScaleReportError,
+                        ScaleStatus,
+                        find_scales,
+                        parse_scale_report,
+)
 from .nn_archive import NNArchiveInfo, archive_config, build_nn_archive
 from .oak import OakForceModel, OakOptions, available_oaks
 from .recorder import RecordOptions, RecordResult, prepare_output, record

@@ -19,8 +19,8 @@ from __future__ import annotations
 import logging
 import os
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import cv2
 import numpy as np
@@ -139,7 +139,7 @@ class GelSightMiniSource(CameraSource):
     """
 
     def __init__(self, options: GelSightMiniOptions | None = None, *, name: str | None = None,
-                 clock: Clock = time.monotonic_ns, open_capture: Callable[[str], Capture] | None = None,
+                 clock: Clock = time.monotonic_ns, open_capture: Callable[[int | str], Capture] | None = None,
                  sys_root: str | os.PathLike = "/sys", dev_root: str | os.PathLike = "/dev") -> None:
         self.options = options or GelSightMiniOptions()
         self.options.validate()
@@ -167,7 +167,10 @@ class GelSightMiniSource(CameraSource):
     @property
     def capture_size(self) -> tuple[int, int]:
         """(width, height) pixels of the images being cropped (the size the driver settled on)."""
-        return self._crop.expect if self._crop is not None else tuple(self.options.size)
+        if self._crop is not None:
+            return self._crop.expect
+        w, h = self.options.size
+        return int(w), int(h)
 
     def _locate(self) -> str:
         self.attached, node = locate_sensor(self.options.sensor, find_gelsight_mini, self._roots)

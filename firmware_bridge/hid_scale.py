@@ -17,6 +17,7 @@ from __future__ import annotations
 import enum
 import time
 from dataclasses import dataclass, field
+from typing import Protocol
 
 from ..edge.errors import SourceError, TactileForceError, require
 
@@ -148,6 +149,12 @@ def find_scales(enumerate_fn=None) -> list[dict]:
     return [d for d in enumerate_fn() if d.get("usage_page") == SCALE_USAGE_PAGE]
 
 
+class HidDevice(Protocol):
+    """What HidScale uses of a hidapi device (real or a test fake)."""
+
+    def read(self, size: int, timeout_ms: int = 0) -> list[int]: ...
+
+
 @dataclass
 class HidScale:
     """An open HID scale: ``read()`` -> latest :class:`ScaleReading`; ``tare()`` zeroes it.
@@ -156,14 +163,14 @@ class HidScale:
     returning a list of ints, empty on timeout).
     """
 
-    device: object
+    device: HidDevice
     options: ScaleOptions = field(default_factory=ScaleOptions)
     name: str = "scale"
     tare_n: float = 0.0
     last: ScaleReading | None = None
 
     @classmethod
-    def open(cls, options: ScaleOptions | None = None) -> "HidScale":
+    def open(cls, options: ScaleOptions | None = None) -> HidScale:
         """Open the scale named by ``options`` (or the first one found)."""
         options = options or ScaleOptions()
         hid = require("hid", "usb", "the HID reference scale")

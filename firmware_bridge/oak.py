@@ -140,7 +140,7 @@ class OakForceModel:
             device.close()
             self._device = None
 
-    def __enter__(self) -> "OakForceModel":
+    def __enter__(self) -> OakForceModel:
         return self
 
     def __exit__(self, *exc) -> None:

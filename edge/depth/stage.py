@@ -123,6 +123,8 @@ class DepthStage:
         self.reference: np.ndarray | None = None
         self._ref_gx: np.ndarray | None = None  # paper mode: mean reference gradients (outside the mask)
         self._ref_gy: np.ndarray | None = None
+        rows, cols = np.mgrid[0:h, 0:w]
+        self._cell_of = ((rows // 2) * (w // 2) + cols // 2).ravel()  # mapping_step 2: each pixel's 2x2 cell
         self._dilate = None
         if options.paper_dilation_px:
             import cv2
@@ -222,7 +224,7 @@ class DepthStage:
         clamped = 0
         where = idx
         if self.options.mapping_step == 2:  # evaluate at the even row/column pixel of each 2x2 cell
-            where, back = self._cell_anchors(m)
+            where, back = self._cell_anchors(m, idx)
         if self.lut is not None and where is idx:
             self._lut_gradients_in_box(frame, m)
             vx = None
@@ -245,17 +247,19 @@ class DepthStage:
         detail = f"{clamped} gradient values clamped" if clamped else ""
         return DepthResult(self._depth.copy(), True, detail, h, int(idx.size), clamped)
 
-    def _cell_anchors(self, m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _cell_anchors(self, m: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """mapping_step 2: flat indices of the even row/column pixel of every 2x2 cell that
         holds a mask pixel, and for each mask pixel (in flat order) its cell's position in
         that list."""
         h, w = m.shape
-        cells = m.reshape(h // 2, 2, w // 2, 2).any(axis=(1, 3))
-        rows, cols = np.nonzero(cells)
+        u = np.ascontiguousarray(m).view(np.uint8)
+        cells = (u[0::2, 0::2] | u[1::2, 0::2]) | (u[0::2, 1::2] | u[1::2, 1::2])  # (h/2, w/2): any in the cell
+        flat_cells = np.flatnonzero(cells)
+        rows, cols = np.divmod(flat_cells, w // 2)
         anchors = (2 * rows) * w + 2 * cols
-        pos = np.zeros(cells.shape, np.intp)
-        pos[rows, cols] = np.arange(rows.size)
-        back = pos.repeat(2, axis=0).repeat(2, axis=1)[m]
+        pos = np.zeros(cells.size, np.intp)
+        pos[flat_cells] = np.arange(flat_cells.size)
+        back = pos[self._cell_of[idx]]
         return anchors, back
 
     def _lut_gradients_in_box(self, frame: np.ndarray, m: np.ndarray) -> None:

@@ -4,8 +4,15 @@ grasp-sequence frame source, synthetic datasets in the authors' layout, indenter
 from .digit import ContactSpec, SyntheticFrame, VirtualDigit, VirtualDigitOptions
 from .dome import DomeOptions, dome_height_mm
 from .generate import DatasetOptions, DatasetSummary, generate_dataset
-from .indenters import (EXTRA_INDENTERS, INDENTERS, PAPER_INDENTERS, STIFFNESS_CLASSES, Indenter, get_indenter,
-                        paper_indenter_names)
+from .indenters import (
+                        EXTRA_INDENTERS,
+                        INDENTERS,
+                        PAPER_INDENTERS,
+                        STIFFNESS_CLASSES,
+                        Indenter,
+                        get_indenter,
+                        paper_indenter_names,
+)
 from .mechanics import GelOptions
 from .sampling import ForceDistribution, sample_contact
 from .shading import Led, ShadingOptions

@@ -24,8 +24,16 @@ from ..errors import FrameError
 from ..frames import FRAME_COLS, FRAME_ROWS, check_frame
 from .dome import DomeOptions, dome_height_mm
 from .indenters import Indenter, get_indenter
-from .mechanics import (GelOptions, combined_modulus, flat_punch_depth, gel_force, hertz_depth, hertz_force,
-                        onset_visibility, penalty_depth)
+from .mechanics import (
+    GelOptions,
+    combined_modulus,
+    flat_punch_depth,
+    gel_force,
+    hertz_depth,
+    hertz_force,
+    onset_visibility,
+    penalty_depth,
+)
 from .shading import AnalyticShader, MlpShader, ShadingOptions
 
 #: The shipped no-contact background (AUROVA-LAB/aurova_grasping, MIT; see assets/).
@@ -115,7 +123,7 @@ class VirtualDigit:
         if not (5.0 <= ppm <= 60.0):
             raise ValueError(f"px_per_mm: {ppm}; expected about 17-20 for a DIGIT")
         if options.normal_to_rgb_mlp is not None:
-            self.shader = MlpShader(options.normal_to_rgb_mlp, ppm)
+            self.shader: MlpShader | AnalyticShader = MlpShader(options.normal_to_rgb_mlp, ppm)
         else:
             self.shader = AnalyticShader(self.background, ppm, options.shading)
         self._rng = np.random.default_rng(options.seed)

@@ -78,7 +78,7 @@ def _plan(options: DatasetOptions) -> list[tuple[int, str, ContactSpec | None, f
     for nm in names:
         get_indenter(nm)
     k = max(int(options.frames_per_grasp), 1)
-    plan = []
+    plan: list[tuple[int, str, ContactSpec | None, float, str, np.ndarray]] = []
     g = 0
     while len(plan) < options.n:
         name = names[g % len(names)] if g < len(names) else str(rng.choice(names))  # every indenter appears

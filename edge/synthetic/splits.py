@@ -6,8 +6,8 @@ A split is a seeded random partition of indenter names; samples are assigned by 
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
-from typing import Iterable, Mapping
 
 import numpy as np
 
