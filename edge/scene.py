@@ -800,11 +800,11 @@ def open_outputs(scene: Scene, p99_ms=None) -> list:
             elif o.kind == "jsonl":
                 sinks.append(JsonlWriter(path, fsync=o.fsync))
             elif o.kind == "mcap":
-                from .mcap_output import McapWriter  # the 'mcap' extra, imported only now
+                from .outputs.mcap_log import McapWriter  # the 'mcap' extra, imported only now
 
                 sinks.append(McapWriter(path, fsync=o.fsync))
             elif o.kind == "ros2":
-                from .ros2_output import Ros2Publisher  # the 'ros2' extra, imported only now
+                from .outputs.ros2_topic import Ros2Publisher  # the 'ros2' extra, imported only now
 
                 assert o.topic is not None  # parse_scene requires it
                 sinks.append(Ros2Publisher(o.topic))

@@ -206,7 +206,7 @@ def test_run_from_flags_writes_an_mcap_log(tmp_path, monkeypatch, rgb_bundle, au
     """The issue's must-show: a replay run from flags ends with RE/MAE and leaves an MCAP file
     that the mcap reader lists with one WrenchStamped message per reading."""
     pytest.importorskip("mcap", reason="the 'mcap' extra is not installed")
-    pytest.importorskip("tactile_force.edge.mcap_output", reason="MCAP output not written yet")
+    pytest.importorskip("tactile_force.edge.outputs.mcap_log", reason="MCAP output not written yet")
     from mcap.reader import make_reader
 
     monkeypatch.chdir(tmp_path)

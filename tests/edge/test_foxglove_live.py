@@ -15,10 +15,10 @@ import pytest
 pytest.importorskip("foxglove", reason="the live view needs foxglove-sdk (the 'foxglove' extra)")
 ws_client = pytest.importorskip("websockets.sync.client", reason="the test client needs 'websockets'")
 
-from tactile_force.edge.foxglove_live import FoxgloveLive  # noqa: E402
+from tactile_force.edge.outputs.foxglove_live import FoxgloveLive  # noqa: E402
 from tactile_force.edge.reading import Flags, ForceReading  # noqa: E402
-from tactile_force.edge.ros2_messages import CompressedImage, DiagnosticArray, WrenchStamped  # noqa: E402
-from tactile_force.edge.ros2_names import StampClock  # noqa: E402
+from tactile_force.edge.outputs.ros2_messages import CompressedImage, DiagnosticArray, WrenchStamped  # noqa: E402
+from tactile_force.edge.outputs.ros2_names import StampClock  # noqa: E402
 
 
 def _recv_json(ws, op: str) -> dict:

@@ -19,14 +19,14 @@ pytest.importorskip("mcap", reason="MCAP output needs the 'mcap' extra")
 pytest.importorskip("cyclonedds", reason="MCAP output serialises CDR with cyclonedds (the 'mcap' extra)")
 
 from mcap.reader import make_reader  # noqa: E402
-from tactile_force.edge.mcap_output import McapWriter, read_messages  # noqa: E402
+from tactile_force.edge.outputs.mcap_log import McapWriter, read_messages  # noqa: E402
 from tactile_force.edge.reading import Flags, ForceReading, StageLatency  # noqa: E402
-from tactile_force.edge.ros2_messages import (  # noqa: E402
+from tactile_force.edge.outputs.ros2_messages import (  # noqa: E402
     CompressedImage,
     DiagnosticArray,
     WrenchStamped,
 )
-from tactile_force.edge.ros2_names import StampClock  # noqa: E402
+from tactile_force.edge.outputs.ros2_names import StampClock  # noqa: E402
 
 
 def _readings() -> list[ForceReading]:
@@ -133,7 +133,7 @@ def test_frames_off_by_default_and_bad_input(tmp_path):
 
 WORKER = textwrap.dedent("""
     import sys, time
-    from tactile_force.edge.mcap_output import McapWriter
+    from tactile_force.edge.outputs.mcap_log import McapWriter
     from tactile_force.edge.reading import ForceReading
     w = McapWriter(sys.argv[1])
     i = 0

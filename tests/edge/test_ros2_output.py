@@ -29,9 +29,9 @@ from cyclonedds.sub import DataReader  # noqa: E402
 from cyclonedds.topic import Topic  # noqa: E402
 from cyclonedds.util import duration  # noqa: E402
 from tactile_force.edge.reading import Flags, ForceReading, StageLatency  # noqa: E402
-from tactile_force.edge.ros2_messages import DiagnosticArray, WrenchStamped  # noqa: E402
-from tactile_force.edge.ros2_names import StampClock, dds_topic, ros_topic  # noqa: E402
-from tactile_force.edge.ros2_output import (  # noqa: E402
+from tactile_force.edge.outputs.ros2_messages import DiagnosticArray, WrenchStamped  # noqa: E402
+from tactile_force.edge.outputs.ros2_names import StampClock, dds_topic, ros_topic  # noqa: E402
+from tactile_force.edge.outputs.ros2_topic import (  # noqa: E402
     QosProfile,
     Ros2Publisher,
     dds_qos,
@@ -82,7 +82,7 @@ def test_topic_names_and_bad_input():
 
 def test_messages_serialise_as_plain_cdr():
     clock = StampClock(offset_ns=0)
-    from tactile_force.edge.ros2_messages import wrench_message
+    from tactile_force.edge.outputs.ros2_messages import wrench_message
 
     data = wrench_message(_reading(2, 3.25, Flags.NONE), clock).serialize()
     assert data[:4] == b"\x00\x01\x00\x00"  # CDR_LE encapsulation, what ROS 2 RMWs and ros2 bag use

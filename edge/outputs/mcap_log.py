@@ -27,8 +27,8 @@ from typing import IO, NamedTuple
 import cv2
 import numpy as np
 
-from .errors import FrameError, SceneError, require
-from .reading import ForceReading
+from ..errors import FrameError, SceneError, require
+from ..reading import ForceReading
 from .ros2_names import StampClock, ros_topic
 
 #: JPEG quality of logged frames (0..100).

@@ -9,7 +9,7 @@ matches them without this package needing a ROS installation. Serialised with
 header ``00 01 00 00``): the bytes ``ros2 bag`` stores in an MCAP file with the ``cdr``
 message encoding.
 
-Header stamps are ROS time from :class:`~tactile_force.edge.ros2_names.StampClock`.
+Header stamps are ROS time from :class:`~tactile_force.edge.outputs.ros2_names.StampClock`.
 """
 
 # No 'from __future__ import annotations': cyclonedds reads the field types at class creation.
@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from cyclonedds.idl import IdlStruct
 from cyclonedds.idl.types import byte, float64, int32, sequence, uint8, uint32
 
-from .reading import Flags, ForceReading
+from ..reading import Flags, ForceReading
 from .ros2_names import StampClock
 
 

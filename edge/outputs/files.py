@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 from typing import TextIO
 
-from .reading import ForceReading
+from ..reading import ForceReading
 
 FIELDS = list(ForceReading("", 0, 0, 0.0).as_dict())
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 import re
 import time
 
-from .errors import SceneError
+from ..errors import SceneError
 
 _TOKEN = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 

@@ -15,9 +15,9 @@ from typing import Any
 
 import numpy as np
 
-from .errors import SceneError, require
-from .mcap_output import image_payloads
-from .reading import ForceReading
+from ..errors import SceneError, require
+from .mcap_log import image_payloads
+from ..reading import ForceReading
 from .ros2_names import StampClock, ros_topic
 
 DEFAULT_PORT = 8765

@@ -18,8 +18,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from .errors import SceneError, require
-from .reading import ForceReading
+from ..errors import SceneError, require
+from ..reading import ForceReading
 from .ros2_names import StampClock, dds_topic, ros_topic
 
 #: DDS allows domain ids 0..232 (ROS 2 recommends 0..101 on Linux).
