@@ -143,7 +143,9 @@ CALIBRATION_POINTER = ("`tactile-force calibrate-force` fitted on the 11 real AU
                        "11 held-out frames of the same grasp: [calibration.md](calibration.md) "
                        "(`python -m benchmarks.calibration_study`). Distilled students (`tactile-force compress`) "
                        "against their teacher and against the same students trained with labels, on the held-out "
-                       "synthetic indenters: [distillation.md](distillation.md) (`python -m benchmarks.distill_study`).")
+                       "synthetic indenters: [distillation.md](distillation.md) and "
+                       "[distillation_small_student.md](distillation_small_student.md) "
+                       "(`python -m benchmarks.distill_study`).")
 
 NOTE = """Models: the reference recipe (`python -m benchmarks.reference`), trained from scratch on
 SYNTHETIC virtual DIGIT frames only (S1 split: 14 train / 2 val / 2 held-out test indenters).

@@ -244,6 +244,51 @@ def depth_section(pool, frames: int) -> tuple[list[list[object]], list[list[obje
     return exact + paper, [[f"{mask_px:.0f} px ({100 * mask_px / (320 * 240):.0f} % of the frame)"]]
 
 
+# ----------------------------------------------------------------------------- graph profile
+
+def node_profile(bundle: Path, pool, runs: int) -> tuple[list[list[object]], float]:
+    """onnxruntime's own profiler (``SessionOptions.enable_profiling``) over ``runs`` runs of
+    the bundle's graph (one thread, the runtime's session options): per op type, the median
+    time per run (us), its share of the node time and the node count; and the median
+    ``model_run`` time (us)."""
+    import json
+    from collections import defaultdict
+
+    import onnxruntime as ort
+    from tactile_force.edge import load_bundle
+
+    b = load_bundle(bundle)
+    with tempfile.TemporaryDirectory() as tmp:
+        so = ort.SessionOptions()
+        so.intra_op_num_threads = 1
+        so.inter_op_num_threads = 1
+        so.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
+        so.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL
+        so.log_severity_level = 3
+        so.enable_profiling = True
+        so.profile_file_prefix = str(Path(tmp) / "ort")
+        sess = ort.InferenceSession(str(b.onnx_path), so, providers=["CPUExecutionProvider"])
+        name = b.manifest.inputs[0].name
+        for i in range(runs):
+            sess.run(None, {name: pool.rgb[i % len(pool.rgb):i % len(pool.rgb) + 1]})
+        events = json.loads(Path(sess.end_profiling()).read_text())
+    per_run: dict[str, list[float]] = defaultdict(lambda: [0.0] * runs)
+    nodes: dict[str, set] = defaultdict(set)
+    model_runs = [e["dur"] for e in events if e.get("cat") == "Session" and e.get("name") == "model_run"]
+    kernel = [e for e in events if e.get("cat") == "Node" and str(e.get("name", "")).endswith("_kernel_time")]
+    for e in kernel:
+        nodes[e.get("args", {}).get("op_name", "?")].add(e["name"])
+    # Kernel events in order, run after run: every run executes the same node sequence.
+    n_nodes = sum(len(v) for v in nodes.values())
+    for j, e in enumerate(kernel[: n_nodes * runs]):
+        per_run[e.get("args", {}).get("op_name", "?")][j // n_nodes] += e["dur"]
+    skip = min(runs // 10, 50)  # warm-up runs
+    med = {op: float(np.median(v[skip:])) for op, v in per_run.items()}
+    total = sum(med.values()) or 1.0
+    rows = [[op, t, f"{100 * t / total:.0f} %", len(nodes[op])] for op, t in sorted(med.items(), key=lambda x: -x[1])]
+    return rows, float(np.median(model_runs[skip:])) if model_runs else math.nan
+
+
 # ----------------------------------------------------------------------------- the page
 
 def _ratios(by: dict, quick: bool) -> list[list[object]]:
@@ -338,15 +383,20 @@ def latency_page(args, argv: list[str], measure_fn: Callable[[LatencyCase], Late
     sections.append(Section("Contact gate cost and agreement (ContactGate.update alone)",
                             markdown_table(gh, gr) if gh else "(real data not found: ../shared/data)"))
     pre = measure_preprocessing(200 if quick else 1000)
+    (prof, run_us), pstate = _watched(lambda: node_profile(default_path, pool, 100 if quick else 500))
     sections.append(Section(
         "Graph-level work: where the compact int8 RGBmod spends its time",
-        "onnxruntime's profiler (`SessionOptions.enable_profiling`), default bundle, one thread, node by node: the "
-        "int8 convolutions take about half of the node time; the input head (uint8 NHWC -> NCHW Transpose, Cast to "
-        "float, 4x4 AveragePool, QuantizeLinear) about a third. Tried and kept out (measured not faster on this "
+        "onnxruntime's profiler (`SessionOptions.enable_profiling`), default bundle, one thread, node by node "
+        f"(median per run; `model_run` median {run_us:.0f} us, the node times sum to less):\n\n"
+        + markdown_table(["op (as onnxruntime runs it)", "us per run", "share of node time", "nodes"], prof, 1)
+        + "\n\nThe int8 convolutions take about half of the node time; the input head (uint8 NHWC -> NCHW "
+        "Transpose, Cast to float, 4x4 AveragePool, QuantizeLinear) about a third. Tried and kept out (measured not "
+        "faster on this "
         "machine, same outputs): the head as one QLinearConv (4x4 stride 4, per channel; dense and depthwise), "
         "a Reshape + ReduceMean head, session options (graph optimisation level extended vs all, memory arena and "
         "pattern off, QDQ int8 allowance). IO binding is kept (the runtime's predict runs the bound buffers).\n\n"
-        + markdown_table(["graph (in-graph preprocessing alternatives)", "p50 us", "p99 us", "max abs diff"], pre, 2)))
+        + markdown_table(["graph (in-graph preprocessing alternatives)", "p50 us", "p99 us", "max abs diff"], pre, 2),
+        pstate))
     paper = markdown_table(["the paper's figure", "ms"], [[k, v] for k, v in PAPER_FIGURES.items()], 2)
     sections.append(Section("The paper's figures (their hardware, not measured here)", paper))
 

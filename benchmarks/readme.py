@@ -28,12 +28,17 @@ def write_readme(out: Path) -> Path:
              "    python -m benchmarks latency --check --out docs/benchmarks   # only latency.md and check.md",
              "    python -m benchmarks all --quick   # smoke run into out/benchmarks (never into the docs)", "",
              "Without `--out` results go to out/benchmarks (git-ignored). The check records the machine's load and",
-             "repeats when it is busy: 'machine busy' is reported apart from 'over budget'.", ""
+             "repeats when it is busy: 'machine busy' is reported apart from 'over budget'.", "",
              "Trained models come from `python -m benchmarks.reference` (synthetic frames, CPU);",
              "configs it has not trained yet are listed as 'not trained'.", ""]
     for name, what in PAGES:
         mark = "" if (out / name).exists() else " (not generated yet)"
         lines.append(f"- [{name}]({name}): {what}{mark}")
+    known = {name for name, _ in PAGES} | {"README.md"}
+    for f in sorted(out.glob("*.md")) if out.is_dir() else []:  # pages other studies wrote here
+        if f.name not in known:
+            title = next((ln.lstrip("# ").strip() for ln in f.read_text().splitlines() if ln.startswith("#")), "")
+            lines.append(f"- [{f.name}]({f.name}): {title}")
     p = out / "README.md"
     p.write_text("\n".join(lines) + "\n")
     return p

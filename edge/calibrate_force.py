@@ -127,7 +127,12 @@ def fit_knots(raw: np.ndarray, truth: np.ndarray, method: str = "isotonic") -> t
         raise CalibrationRefused(f"the true force does not increase with the model's estimate (least-squares slope "
                                  f"{slope:.3g} N/N); check the labels and that the bundle matches this sensor")
     if method == "linear":
-        lo, hi = float(raw.min()), float(raw.max())
+        # the fitted line over the data, cut where it leaves 0 .. EXTRAPOLATE_TO_N N
+        lo = max(float(raw.min()), -intercept / slope)
+        hi = min(float(raw.max()), (EXTRAPOLATE_TO_N - intercept) / slope)
+        if not hi > lo:
+            raise CalibrationRefused("the least-squares line gives no force between 0 N and "
+                                     f"{EXTRAPOLATE_TO_N:g} N over these estimates; check the labels")
         xs, ys = [lo, hi], [slope * lo + intercept, slope * hi + intercept]
     else:
         order = np.argsort(raw, kind="stable")

@@ -46,7 +46,8 @@ class OnnxForceModel:
         cal = getattr(m, "force_calibration", None)
         if cal is not None and cal.model_sha256 and cal.model_sha256 != m.sha256:
             raise BundleError(f"{self.bundle.path}: force_calibration was fitted for model sha256 "
-                              f"{cal.model_sha256[:12]}..., not this bundle's {m.sha256[:12]}...; re-run calibrate-force")
+                              f"{cal.model_sha256[:12]}..., not this bundle's {m.sha256[:12]}...; "
+                              "re-run calibrate-force")
         self.calibration = cal if calibrate else None
         if threads < 1:
             raise ValueError(f"threads={threads}: expected >= 1 intra-op threads")

@@ -5,7 +5,8 @@ recommended format for ONNX Runtime on x86/ARM CPUs; ORT fuses each
 DequantizeLinear -> Conv -> QuantizeLinear group into an integer QLinearConv at load time.
 The final linear layer (and the reshape after it) stays float, so forces are not snapped
 to an 8-bit grid, and so do the pooled features and their concatenation that feed it
-(``float_head_inputs``; docs/benchmarks/int8_head.md); the graph's uint8 input and float32 ``force_n`` output are unchanged.
+(``float_head_inputs``; docs/benchmarks/int8_head.md); the graph's uint8 input and float32
+``force_n`` output are unchanged.
 The quantized model is compared with the fp32 one on real frames (and with ground truth
 when the frames are labelled), using the paper's RE / MAE, and the figures go into the
 manifest. Nothing is written unless every step succeeds.
@@ -53,7 +54,8 @@ class QuantizeOptions:
     mode: 'int8-static' | 'int8-dynamic' | 'fp16'. method (int8-static): 'minmax' |
     'entropy' | 'percentile'. keep_float: extra node names to leave in float (the final
     linear layer always is). float_head_inputs: also keep the pooled features and their
-    concatenation feeding the final linear layer in float (:func:`head_input_nodes`). histogram_bins: histogram size for entropy/percentile (entropy's
+    concatenation feeding the final linear layer in float (:func:`head_input_nodes`).
+    histogram_bins: histogram size for entropy/percentile (entropy's
     threshold search time grows with it). min/max_calibration_frames bound the frames used.
     """
 
