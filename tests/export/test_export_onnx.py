@@ -30,8 +30,8 @@ def rgbmod_full(module_tmp, aurova):
 def test_authors_rgbmod_full_resolution_exports_with_parity(rgbmod_full, aurova):
     ckpt, b = rgbmod_full
     m = b.manifest
-    assert m.parity["frames"] == 11 and "aurova_digit_grasp" in m.parity["data"]
-    assert m.parity["max_abs_diff_n"] <= 1e-4
+    assert m.parity.frames == 11 and "aurova_digit_grasp" in m.parity.data
+    assert m.parity.max_abs_diff_n <= 1e-4
     # independent re-check: our own ORT session vs torch eager on every real frame, one at a time
     model, spec, _ = model_from_checkpoint(ckpt, variant="rgbmod")
     net = ForceNet(model, spec).eval()
@@ -59,8 +59,8 @@ def test_manifest_describes_inputs_graph_and_provenance(rgbmod_full):
     assert 2.5 < m.architecture.gmacs < 3.2  # ResNet-18 at 320x240 ~ 1.82 GMACs * (320*240)/(224*224)
     import hashlib
 
-    assert m.provenance["checkpoint_sha256"] == hashlib.sha256(ckpt.read_bytes()).hexdigest()
-    assert m.provenance["checkpoint_format"].startswith("authors'")
+    assert m.provenance.checkpoint_sha256 == hashlib.sha256(ckpt.read_bytes()).hexdigest()
+    assert m.provenance.checkpoint_format.startswith("authors'")
 
 
 def test_graph_batch_is_dynamic_and_takes_raw_bgr_frames(rgbmod_full, aurova):
@@ -83,7 +83,7 @@ def test_authors_depth_checkpoints_export_with_parity_on_real_depth_images(modul
     b = export_bundle(ckpt, module_tmp / f"{variant}_fp32",
                       ExportOptions(variant=variant, input_scale=0.25, parity_data=aurova))
     m = b.manifest
-    assert m.parity["max_abs_diff_n"] <= 1e-4 and m.parity["frames"] == 11
+    assert m.parity.max_abs_diff_n <= 1e-4 and m.parity.frames == 11
     assert [s.name for s in m.inputs] == (["depth"] if variant == "d" else ["rgb", "depth"])
     assert m.inputs[-1].shape == [-1, 320, 240, 1] and m.inputs[-1].colour_order == "GRAY"
     assert m.needs_depth
