@@ -74,7 +74,8 @@ def _locate(path: Path) -> tuple[Path, Path]:
         return path, path.with_suffix(".json")
     if path.suffix == ".json":
         return path.with_suffix(".onnx"), path
-    raise BundleError(f"{path}: not a bundle (expected a folder with model.onnx + model.json, or NAME.onnx with NAME.json)")
+    raise BundleError(f"{path}: not a bundle (expected a folder with model.onnx + model.json, "
+                      "or NAME.onnx with NAME.json)")
 
 
 def read_manifest(path: str | os.PathLike) -> Manifest:

@@ -79,7 +79,8 @@ def describe_manifest(b) -> list[str]:  # b: Bundle
             lines.append(f"error     vs labels RE {_num(e.vs_truth.re_mean)} +- {_num(e.vs_truth.re_std)}, "
                          f"MAE {_num(e.vs_truth.mae_mean)} N ({e.vs_truth.n} frames of {e.data or '?'})")
         if e.vs_fp32:
-            lines.append(f"error     vs fp32 max {e.vs_fp32.max_abs_diff_n:.4f} N, mean {e.vs_fp32.mean_abs_diff_n:.4f} N")
+            lines.append(f"error     vs fp32 max {e.vs_fp32.max_abs_diff_n:.4f} N, "
+                         f"mean {e.vs_fp32.mean_abs_diff_n:.4f} N")
         if e.vs_teacher:
             lines.append(f"error     vs teacher RE {_num(e.vs_teacher.re_mean)}, MAE {_num(e.vs_teacher.mae_mean)} N")
     if m.force_calibration:

@@ -83,11 +83,13 @@ class OnnxForceModel:
     def close(self) -> None:
         """Release the ONNX Runtime session (idempotent)."""
         self._bindings = []
-        self.session = None  # type: ignore[assignment]
+        self.session = None
 
     def _feed(self, n: int) -> dict[str, np.ndarray]:
-        feed = {self.rgb_name: self._rgb[:n]} if self._rgb is not None else {}
-        if self._depth is not None:
+        feed: dict[str, np.ndarray] = {}
+        if self._rgb is not None and self.rgb_name is not None:
+            feed[self.rgb_name] = self._rgb[:n]
+        if self._depth is not None and self.depth_name is not None:
             feed[self.depth_name] = self._depth[:n]
         return feed
 
@@ -133,7 +135,7 @@ class OnnxForceModel:
             if depth.shape[0] != n:
                 raise FrameError(f"depth: batch {depth.shape[0]} but rgb batch {n}; expected one depth image per frame")
             self._depth[:n] = depth
-        if self._rgb is not None:
+        if self._rgb is not None and rgb is not None:
             self._rgb[:n] = rgb
         return self._run(n).copy()
 
@@ -162,7 +164,8 @@ def check_graph_contract(bundle: Bundle, session) -> None:
         gi = graph_inputs.get(name)
         if gi is None:
             raise BundleError(f"{where}: manifest input {name!r} is not in the ONNX graph "
-                              f"({spec.kind.value}; graph inputs: {sorted(graph_inputs)}); model and manifest do not match. "
+                              f"({spec.kind.value}; graph inputs: {sorted(graph_inputs)}); "
+                              "model and manifest do not match. "
                               f"A {m.variant.value!r} bundle needs the inputs {[s.kind.value for s in m.inputs]}")
         if gi.type != "tensor(uint8)":
             raise BundleError(f"{where}: graph input {name!r} is {gi.type}; the bundle contract is uint8")

@@ -106,7 +106,8 @@ class InputSpec:
     def check(self) -> None:
         want = [-1, FRAME_ROWS, FRAME_COLS, self.channels]
         if self.shape != want:
-            raise ValueError(f"input {self.name!r} ({self.kind.value}) has shape {self.shape}; the frame contract is {want}")
+            raise ValueError(f"input {self.name!r} ({self.kind.value}) has shape {self.shape}; "
+                             f"the frame contract is {want}")
         if self.dtype != "uint8" or self.layout != "NHWC":
             raise ValueError(f"input {self.name!r}: dtype {self.dtype} layout {self.layout}; expected uint8 NHWC")
         want_order = "BGR" if self.kind is InputKind.RGB else "GRAY"
@@ -319,7 +320,8 @@ class Manifest:
             raise ValueError(f"format_version {self.format_version}; this package writes {FORMAT_VERSION}")
         check_onnx_file_name(self.onnx_file)
         kinds = [s.kind for s in self.inputs]
-        want = ([InputKind.RGB] if self.variant.needs_rgb else []) + ([InputKind.DEPTH] if self.variant.needs_depth else [])
+        wanted = ((InputKind.RGB, self.variant.needs_rgb), (InputKind.DEPTH, self.variant.needs_depth))
+        want = [k for k, needed in wanted if needed]
         if sorted(k.value for k in kinds) != sorted(k.value for k in want):
             raise ValueError(f"inputs: variant {self.variant.value!r} needs inputs of kind "
                              f"{[k.value for k in want]}, the manifest lists {[k.value for k in kinds]}")

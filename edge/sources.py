@@ -82,8 +82,10 @@ def _fit_camera(frame: np.ndarray | None, shape: tuple[int, int, int], size: tup
     """A camera image in the contract, or None (corrupt). Accepted: ``shape`` itself, its landscape
     transpose (oriented as digit-interface does), or the requested landscape ``size`` (width, height),
     oriented and then resized to ``shape`` with INTER_AREA (VGA -> 320x240)."""
+    if frame is None:
+        return None
     fitted = _fit(frame, shape)
-    if fitted is not None or frame is None or frame.ndim != 3 or frame.dtype != np.uint8:
+    if fitted is not None or frame.ndim != 3 or frame.dtype != np.uint8:
         return fitted
     if frame.shape == (size[1], size[0], 3):
         out = orient_digit(frame) if size[0] > size[1] else frame
@@ -154,8 +156,9 @@ class CameraSource(FrameSource):
                               "to /dev/video*: add your user to the 'video' group)")
         try:
             for code in self.fourcc:
-                cap.set(cv2.CAP_PROP_FOURCC, cv2.VideoWriter_fourcc(*code))
-                if int(cap.get(cv2.CAP_PROP_FOURCC)) == cv2.VideoWriter_fourcc(*code):
+                fourcc = cv2.VideoWriter.fourcc(*code)
+                cap.set(cv2.CAP_PROP_FOURCC, fourcc)
+                if int(cap.get(cv2.CAP_PROP_FOURCC)) == fourcc:
                     break
             cap.set(cv2.CAP_PROP_FRAME_WIDTH, self.size[0])
             cap.set(cv2.CAP_PROP_FRAME_HEIGHT, self.size[1])

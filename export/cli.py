@@ -68,7 +68,8 @@ def configure_export(p: argparse.ArgumentParser) -> None:
     p.add_argument("checkpoint", type=Path, help="trained weights (.pth / .pth.tar): the authors' format or ours")
     p.add_argument("--out", required=True, type=Path, help="bundle folder to create")
     p.add_argument("--variant", help=f"model variant: {VARIANT_HELP}. Required for the authors' checkpoints")
-    p.add_argument("--width", type=float, help="channel width multiplier of a compact model (default 1.0 or the file's)")
+    p.add_argument("--width", type=float,
+                   help="channel width multiplier of a compact model (default 1.0 or the file's)")
     p.add_argument("--input-scale", type=_fraction,
                    help="network input scale 1/k, e.g. 1/4 -> 80 x 60 (default 1 or the file's)")
     p.add_argument("--parity-data", type=Path,

@@ -147,7 +147,8 @@ def _load_calibration(calibration, variant: str, o: QuantizeOptions, required: b
                                          show_progress=o.show_progress)
     if len(data) < o.min_calibration_frames:
         raise CalibrationError(f"{data.source}: only {len(data)} calibration frame(s); at least "
-                               f"{o.min_calibration_frames} are needed (a few hundred covering the force range is better)")
+                               f"{o.min_calibration_frames} are needed "
+                               "(a few hundred covering the force range is better)")
     missing = [n for n in _input_names(variant) if n not in data.inputs]
     if missing:
         raise CalibrationError(f"{data.source}: has no {', '.join(missing)} frames, which variant '{variant}' needs")
@@ -167,12 +168,15 @@ def _static(pre_path: Path, out_path: Path, data: CalibrationData, exclude: list
     # quantize_static cannot set the histogram size, and its Entropy default (128 bins searched
     # over 128 quantized bins) can never clip, i.e. it equals MinMax. So the ranges are computed
     # here with options.histogram_bins bins and handed over through ORT's calibration cache.
-    hist = {"entropy": {"num_bins": o.histogram_bins, "num_quantized_bins": 128},
-            "percentile": {"num_bins": o.histogram_bins, "percentile": o.percentile}}.get(o.method, {})
+    by_method: dict[str, dict[str, int | float]] = {
+        "entropy": {"num_bins": o.histogram_bins, "num_quantized_bins": 128},
+        "percentile": {"num_bins": o.histogram_bins, "percentile": o.percentile}}
+    hist = by_method.get(o.method, {})
     if hist and "calibration_cache_path" in inspect.signature(q.quantize_static).parameters:
         from onnxruntime.quantization.calibrate import create_calibrator, save_tensors_data
 
-        calibrator = create_calibrator(pre_path, None, augmented_model_path=os.fspath(out_path.with_suffix(".aug.onnx")),
+        aug = os.fspath(out_path.with_suffix(".aug.onnx"))
+        calibrator = create_calibrator(pre_path, None, augmented_model_path=aug,
                                        calibrate_method=method, extra_options=hist)
         calibrator.collect_data(FrameCalibrationReader(data, o.show_progress))
         cache = out_path.with_suffix(".ranges.json")
@@ -184,7 +188,7 @@ def _static(pre_path: Path, out_path: Path, data: CalibrationData, exclude: list
         extra = {"CalibPercentile": o.percentile} if o.method == "percentile" else {}
         q.quantize_static(os.fspath(pre_path), os.fspath(out_path), FrameCalibrationReader(data, o.show_progress),
                           extra_options=extra, **common)
-    info = {"format": "QDQ", "activations": "uint8 (asymmetric)", "weights": "int8",
+    info: dict[str, object] = {"format": "QDQ", "activations": "uint8 (asymmetric)", "weights": "int8",
             "per_channel": o.per_channel, "method": o.method, "calibration_data": data.source,
             "calibration_frames": len(data)}
     if o.method == "percentile":
@@ -223,7 +227,8 @@ def _error_report(fp32_bytes: bytes, q_bytes: bytes, data: CalibrationData, used
     ref = run_ort(ort_session(fp32_bytes, threads=2), data)
     got = run_ort(ort_session(q_bytes, threads=2), data)
     if not np.all(np.isfinite(got)):
-        raise QuantizeError("quantized model gives non-finite forces (NaN/inf); try --method percentile or --keep-float")
+        raise QuantizeError("quantized model gives non-finite forces (NaN/inf); "
+                            "try --method percentile or --keep-float")
     diff = np.abs(got - ref)
     vs_fp32 = _figures(error_stats(got, ref))
     rep = ErrorReport(data=data.source, frames=len(data), same_frames_as_calibration=used_for_calibration,
@@ -268,8 +273,8 @@ def quantize_bundle(src: Bundle | str | os.PathLike, dest: str | os.PathLike, op
     else:
         evaluation, same = CalibrationData.from_path(eval_data, m.variant, limit=o.max_calibration_frames), False
     fp32_bytes = bundle.onnx_path.read_bytes()
-    with tempfile.TemporaryDirectory(prefix="tactile-force-quant-") as tmp:
-        tmp = Path(tmp)
+    with tempfile.TemporaryDirectory(prefix="tactile-force-quant-") as tmp_name:
+        tmp = Path(tmp_name)
         raw, pre, out = tmp / "fp32.onnx", tmp / "pre.onnx", tmp / "quant.onnx"
         raw.write_bytes(fp32_bytes)
         if o.mode == "fp16":

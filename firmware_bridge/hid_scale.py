@@ -119,7 +119,8 @@ def parse_scale_report(report: bytes | bytearray | list[int], has_report_id: boo
         unit = UNITS.get(unit_code, (f"unit#{unit_code}", nan))[0]
         return ScaleReading(status, unit, nan, nan, nan, False, False, timestamp_ns, raw)
     if unit_code not in UNITS:
-        raise ScaleReportError(f"HID report {raw.hex(' ')}: weight unit {unit_code} not in 1..12 (HID POS weight units)")
+        raise ScaleReportError(f"HID report {raw.hex(' ')}: weight unit {unit_code} not in 1..12 "
+                               "(HID POS weight units)")
     unit, kg_per_unit = UNITS[unit_code]
     value = magnitude * 10.0 ** exponent
     mass = value * kg_per_unit

@@ -16,8 +16,8 @@ from typing import Any
 import numpy as np
 
 from ..errors import SceneError, require
-from .mcap_log import image_payloads
 from ..reading import ForceReading
+from .mcap_log import image_payloads
 from .ros2_names import StampClock, ros_topic
 
 DEFAULT_PORT = 8765
