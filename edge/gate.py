@@ -494,9 +494,10 @@ class ContactGate:
                        "background (defocus, a smudged lens or condensation?)")
         reason, kind = "", ""
         if not invalid and (global_change or photometric):
-            if float(y.std(axis=0).max()) < 2.0:
+            if float(cv2.meanStdDev(self._thumb_f)[1].max()) < 2.0:
                 invalid = "uniform frame: no gel image (LEDs off, lens covered, a test pattern or a stalled camera?)"
-            elif global_change and self._colour_swapped(y):
+            # A wrong colour order shows from the first frame on, never inside a tracked contact.
+            elif global_change and not was_contact and self._colour_swapped(y):
                 invalid = ("colour order: the frame fits the background far better with B and R swapped; the source "
                            "delivers RGB, the package expects BGR (OpenCV order): convert with frame[..., ::-1]")
         if not invalid:

@@ -91,6 +91,7 @@ class SensorSpec:
     gate: GateOptions = field(default_factory=GateOptions)
     seed: int = 0
     n_grasps: int = 3
+    hotplug: bool = True
 
     @property
     def kind(self) -> SourceKind:
@@ -230,13 +231,49 @@ def _open_camera(s: SensorSpec, clock: Clock):
     return CameraSource(s.device, fps=s.fps or 60.0, name=s.name, clock=clock)
 
 
+_udev_state: dict[str, Any] = {}
+
+
+def udev_watcher():
+    """The process's one UdevWatcher (pyudev + libudev), or None when hot-plug events cannot
+    be had here (no pyudev, no libudev, no netlink socket); logged once, then cached."""
+    import logging
+
+    if "watcher" not in _udev_state:
+        try:
+            from tactile_force.firmware_bridge.hotplug import UdevWatcher
+
+            _udev_state["watcher"] = UdevWatcher()
+        except (ImportError, SourceError) as exc:
+            _udev_state["watcher"] = None
+            logging.getLogger(__name__).warning(
+                "USB hot-plug unavailable (%s): DIGITs are opened without it (an unplugged DIGIT is "
+                "retried by its own reconnect loop, not followed by udev events)", exc)
+    return _udev_state["watcher"]
+
+
 def _open_digit(s: SensorSpec, clock: Clock):
     """A DIGIT by serial (or index): the serial is resolved to its /dev/videoN by the
-    firmware_bridge discovery; SourceError naming the serial and listing attached DIGITs."""
+    firmware_bridge discovery; SourceError naming the serial and listing attached DIGITs.
+
+    With ``hotplug`` (default) and pyudev / libudev available, the DIGIT is a
+    :class:`~tactile_force.firmware_bridge.hotplug.HotplugSource`: on unplug its sensor is
+    dropped while the other is served, and it comes back on the udev event of its replug.
+    Without them (or when udev does not list the DIGIT) it is a plain DigitSource."""
     from tactile_force.firmware_bridge.digit import DigitOptions, DigitSource  # USB code, only now
 
+    options = DigitOptions(sensor=s.serial if s.serial is not None else 0, fps=int(s.fps or 60))
     try:
-        return DigitSource(DigitOptions(sensor=s.serial if s.serial is not None else 0, fps=int(s.fps or 60)))
+        watcher = udev_watcher() if s.hotplug else None
+        if watcher is not None:
+            from tactile_force.firmware_bridge.hotplug import digit_hotplug_source
+            from tactile_force.firmware_bridge.usb_ids import DeviceKind
+
+            serial = options.sensor
+            seen = [d for d in watcher.present.values() if d.kind is DeviceKind.DIGIT]
+            if (isinstance(serial, int) and serial < len(seen)) or any(d.serial == serial for d in seen):
+                return digit_hotplug_source(options, watcher, name=s.name)
+        return DigitSource(options)  # udev does not list it: the sysfs lookup (and its message)
     except SourceError as exc:
         raise SourceError(f"sensor '{s.name}' (digit {s.serial}): {exc}") from None
 
@@ -288,9 +325,11 @@ SOURCE_KINDS: dict[str, SourceKind] = {
         "digit",
         {"serial": Key((str, int), None, "a DIGIT serial such as 'D20001', or an index among attached DIGITs",
                        lambda v: not isinstance(v, int) or v >= 0, required=True),
-         "fps": Key((int,), 60, "60 or 30 (QVGA frame rates of a DIGIT)", lambda v: v in (30, 60))},
+         "fps": Key((int,), 60, "60 or 30 (QVGA frame rates of a DIGIT)", lambda v: v in (30, 60)),
+         "hotplug": Key((bool,), True, "true or false (follow unplug / replug through udev events)")},
         GateOptions, _open_digit,
-        lambda s: f"DIGIT {s.serial} (found by serial via USB discovery) at {s.fps:g} fps"),
+        lambda s: f"DIGIT {s.serial} (found by serial via USB discovery) at {s.fps:g} fps"
+                  + (", hot-plug through udev events when pyudev is available" if s.hotplug else "")),
     "gelsight_mini": SourceKind(
         "gelsight_mini",
         {"device": Key((int, str), 0, "a GelSight Mini serial, an index or a /dev/videoN path",
