@@ -123,6 +123,8 @@ def configure_run(p: argparse.ArgumentParser) -> None:
     p.add_argument("--name", default="sensor", help="with --source: the sensor's name in readings (default: sensor)")
     p.add_argument("--out", action="append", default=[], metavar="FILE",
                    help="with --source: also write readings to FILE.csv, FILE.jsonl or FILE.mcap (repeatable)")
+    p.add_argument("--mcap-frames", action="store_true",
+                   help="with --out FILE.mcap: also log each frame (JPEG) and its contact mask (PNG) there")
     p.add_argument("--ros2", metavar="TOPIC", help="with --source: publish readings on this ROS 2 topic")
     p.add_argument("--save-scene", metavar="FILE", help="write the scene that runs as a TOML file")
     p.add_argument("--max-frames", type=non_negative_int, default=None,
@@ -204,7 +206,8 @@ def _run_scene(args: argparse.Namespace):
     from .scene import check_scene, load_scene, scene_from_flags
 
     given = [f"--{k.replace('_', '-')}" for k in ("bundle", "background", "fps", "ros2")
-             if getattr(args, k) is not None] + (["--out"] if args.out else [])
+             if getattr(args, k) is not None] + (["--out"] if args.out else []) \
+        + (["--mcap-frames"] if getattr(args, "mcap_frames", False) else [])
     if args.scene and args.source:
         raise SceneError("give --scene FILE or --source SRC, not both")
     if args.scene:
@@ -214,7 +217,8 @@ def _run_scene(args: argparse.Namespace):
     if not args.source:
         raise SceneError("give --scene FILE, or --source SRC [--bundle B] (see tactile-force run --help)")
     scene = scene_from_flags(args.source, bundle=args.bundle or "default", background=args.background,
-                             outputs=args.out, ros2=args.ros2, name=args.name, fps=args.fps)
+                             outputs=args.out, ros2=args.ros2, name=args.name, fps=args.fps,
+                             mcap_frames=getattr(args, "mcap_frames", False))
     if scene.sensors[0].kind.live:
         scene.outputs[0].live = True
     return check_scene(scene)

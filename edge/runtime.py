@@ -24,18 +24,24 @@ Two sensors are read side by side: each sensor's ``read()`` runs in its own grab
 which holds at most one frame read ahead, so one sensor never waits for the other's
 camera; a step serves every sensor whose frame is there (batch 2 when both are).
 
+Sinks that log frames or contact masks (the MCAP writer with ``frames`` / ``mask``) get each
+gated frame and the gate's full-resolution mask through ``write_frame`` (:func:`frame_sinks`);
+with none, no frame is copied and the full-resolution mask is not made. In paper depth mode
+the zero-depth reference follows the gate's background, also when the gate re-learns it.
+
 Latency per stage is in every reading and as rolling p50/p99 (:meth:`ForceRuntime.latency`).
 Timing uses an injectable ``clock`` (ns) so tests drive it deterministically.
 """
 
 from __future__ import annotations
 
+import logging
 import math
 import threading
 import time
 from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass, field
-from typing import Any, Protocol
+from typing import Any, Protocol, cast
 
 import numpy as np
 
@@ -45,6 +51,8 @@ from .frames import FRAME_SHAPE, FrameSource, TimedFrame, check_frame, exposure_
 from .gate import ContactGate, GateResult
 from .manifest import Manifest
 from .reading import MAX_VALID_FORCE_N, MIN_VALID_FORCE_N, Flags, ForceReading, StageLatency
+
+_log = logging.getLogger(__name__)
 
 STAGES = ("source", "gate", "depth", "inference", "total")
 
@@ -65,6 +73,23 @@ class ReadingSink(Protocol):
     def write(self, reading: ForceReading) -> None: ...
 
     def close(self) -> None: ...
+
+
+class FrameSink(Protocol):
+    """A sink that also logs frames and/or contact masks (the MCAP writer): ``frames`` /
+    ``mask`` say which it wants; :meth:`ForceRuntime.run` hands them only then."""
+
+    frames: bool
+    mask: bool
+
+    def write_frame(self, sensor: str, timestamp_ns: int, frame_bgr: np.ndarray | None,
+                    mask: np.ndarray | None = None) -> None: ...
+
+
+def frame_sinks(sinks: Iterable[object]) -> list[FrameSink]:
+    """The sinks with a ``write_frame`` that want frames or masks (``frames`` / ``mask`` true)."""
+    return [cast(FrameSink, s) for s in sinks if callable(getattr(s, "write_frame", None))
+            and (getattr(s, "frames", False) or getattr(s, "mask", False))]
 
 
 @dataclass
@@ -329,6 +354,12 @@ class ForceRuntime:
         self._use_grabbers = len(sensors) > 1 if use is None else bool(use)
         self._grabbers: _Grabbers | None = None
         self._reference_frames: dict[str, list[np.ndarray]] = {}  # paper depth mode, while learning
+        self._relearned: dict[str, int] = {s.name: s.gate.relearned for s in sensors}  # paper mode
+        #: (frames, masks) to keep for frame sinks; (False, False) = none kept (zero cost).
+        self.tap: tuple[bool, bool] = (False, False)
+        #: (sensor, timestamp ns, HxWx3 uint8 BGR copy or None, HxW uint8 0/255 mask copy or
+        #: None) of the frames gated in the last step, when :attr:`tap` asks for them.
+        self.tapped: list[tuple[str, int, np.ndarray | None, np.ndarray | None]] = []
 
     # -- public ---------------------------------------------------------------------------
     @property
@@ -343,6 +374,7 @@ class ForceRuntime:
         """Process the newest frame of every live sensor; [] once every source has ended."""
         out: list[ForceReading] = []
         pending: list[_Pending] = []
+        self.tapped.clear()
         live = [s for s in self.sensors if s.alive]
         if not live:
             return out
@@ -376,10 +408,18 @@ class ForceRuntime:
     def run(self, sinks: Iterable[ReadingSink] = (), max_frames: int | None = None,
             on_reading: Callable[[ForceReading], None] | None = None) -> RuntimeStats:
         """Step until every source ends (or ``max_frames`` readings), writing each reading to
-        every sink as it is made. Returns the stats with rolling latency percentiles."""
+        every sink as it is made. Sinks that want frames or contact masks (:func:`frame_sinks`)
+        get each gated frame's first, through ``write_frame`` (the gate's full-resolution
+        mask is made only then). Returns the stats with rolling latency percentiles."""
         sinks = list(sinks)
+        taps = frame_sinks(sinks)
+        self.tap = (any(t.frames for t in taps), any(t.mask for t in taps))
         while not self.finished:
-            for r in self.step():
+            readings = self.step()
+            for name, ts, frame, mask in self.tapped:
+                for t in taps:
+                    t.write_frame(name, ts, frame, mask)
+            for r in readings:
                 for sink in sinks:
                     sink.write(r)
                 if on_reading is not None:
@@ -457,8 +497,12 @@ class ForceRuntime:
                                                          "(LEDs off, lens covered?)"), start))
             return None
         g = s.gate.update(frame)
-        if s.depth is not None and getattr(s.depth, "needs_reference", False):
+        if s.depth is not None and (getattr(s.depth, "needs_reference", False)
+                                    or s.gate.relearned != self._relearned[s.name]):
             self._depth_reference(s, frame, g)
+        if self.tap[0] or self.tap[1]:  # copies: the gate reuses its mask, a source may reuse its frame
+            self.tapped.append((s.name, tf.timestamp_ns, frame.copy() if self.tap[0] else None,
+                                g.mask.copy() if self.tap[1] else None))
         t2 = self.clock()
         lat.gate_ms = self._ms(t1, t2)
         if g.mismatch or g.invalid:  # the gate cannot judge this frame: no force (see _gate_verdict)
@@ -484,7 +528,18 @@ class ForceRuntime:
 
     def _depth_reference(self, s: Sensor, frame: np.ndarray, g: GateResult) -> None:
         """Paper depth mode: the zero-depth reference is the gate's background. The frames the
-        gate learns it from are kept and handed to the depth stage once it is learnt."""
+        gate learns it from are kept and handed to the depth stage once it is learnt; when the
+        gate re-learns its background after a mismatch (from this frame), the reference is
+        re-set from it too, so depth stays zero where the gel is untouched."""
+        if s.gate.relearned != self._relearned[s.name]:
+            self._relearned[s.name] = s.gate.relearned
+            if getattr(getattr(s.depth, "options", None), "mode", "") == "paper":
+                try:
+                    s.depth.set_reference([frame])
+                except ValueError as exc:  # unusable frame: keep the reference it had
+                    _log.warning("sensor %s: paper depth reference not re-set after the gate re-learnt its "
+                                 "background (%s); keeping the previous one", s.name, exc)
+            return
         keep = self._reference_frames.setdefault(s.name, [])
         if not g.background_ready:
             keep.append(frame.copy())

@@ -26,6 +26,10 @@
     [[output]]
     kind = "csv"              # "stdout" | "csv" | "jsonl" | "mcap" | "ros2"
     path = "readings.csv"
+    # mcap only: frames = true logs each gated frame (JPEG), mask = true its contact mask (PNG)
+
+A ``digit`` sensor follows unplug / replug through udev events (pyudev) unless
+``hotplug = false``; without pyudev / libudev it is opened without (logged once).
 
 Input paths (bundles, replay folders, videos, backgrounds, depth mappings) are relative to
 the scene file; output paths are relative to the working directory (never the package
@@ -42,6 +46,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import logging
 import math
 import os
 import sys
@@ -100,13 +105,16 @@ class SensorSpec:
 
 @dataclass
 class OutputSpec:
-    """One [[output]] table. path: absolute (file outputs); topic: ROS 2 topic (ros2)."""
+    """One [[output]] table. path: absolute (file outputs); topic: ROS 2 topic (ros2);
+    frames / mask: also log each gated frame (JPEG) / its contact mask (PNG) (mcap only)."""
 
     kind: str
     path: Path | None = None
     live: bool = False
     fsync: bool = False
     topic: str | None = None
+    frames: bool = False
+    mask: bool = False
 
 
 @dataclass
@@ -237,8 +245,6 @@ _udev_state: dict[str, Any] = {}
 def udev_watcher():
     """The process's one UdevWatcher (pyudev + libudev), or None when hot-plug events cannot
     be had here (no pyudev, no libudev, no netlink socket); logged once, then cached."""
-    import logging
-
     if "watcher" not in _udev_state:
         try:
             from tactile_force.firmware_bridge.hotplug import UdevWatcher
@@ -273,6 +279,8 @@ def _open_digit(s: SensorSpec, clock: Clock):
             seen = [d for d in watcher.present.values() if d.kind is DeviceKind.DIGIT]
             if (isinstance(serial, int) and serial < len(seen)) or any(d.serial == serial for d in seen):
                 return digit_hotplug_source(options, watcher, name=s.name)
+            logging.getLogger(__name__).warning(
+                "sensor '%s': udev lists no DIGIT %s; opening it by the sysfs lookup, without hot-plug", s.name, serial)
         return DigitSource(options)  # udev does not list it: the sysfs lookup (and its message)
     except SourceError as exc:
         raise SourceError(f"sensor '{s.name}' (digit {s.serial}): {exc}") from None
@@ -377,7 +385,7 @@ _DEPTH_KEYS: dict[str, Key] = {
     "saturated_fraction": Key((int, float), None, "a number in [0, 1]", lambda v: 0 <= v <= 1),
     "solver_dtype": Key((str,), None, '"float32" or "float64"', lambda v: v in ("float32", "float64")),
 }
-_OUTPUT_KEYS = {"kind", "path", "live", "fsync", "topic"}
+_OUTPUT_KEYS = {"kind", "path", "live", "fsync", "topic", "frames", "mask"}
 
 
 def _gate_options(table: dict, base: GateOptions, where: str) -> GateOptions:
@@ -468,9 +476,14 @@ def _output(t: Any, i: int, where: str) -> OutputSpec:
                                    lambda v: bool(v) and " " not in v), wo)
     if kind == "ros2" and topic is None:
         raise _err(wo, "output 'ros2' needs 'topic' (e.g. '/tactile/force')")
+    images = {k: _value(t, k, Key((bool,), False, f"true or false (log each frame's {what})"), wo)
+              for k, what in (("frames", "image"), ("mask", "contact mask"))}
+    for k, v in images.items():
+        if v and kind != "mcap":
+            raise _err(wo, f"'{k}' is for kind = \"mcap\" only; output '{kind}' writes readings")
     return OutputSpec(kind, _out_path(opath) if opath else None,
                       _value(t, "live", Key((bool,), False, "true or false"), wo),
-                      _value(t, "fsync", Key((bool,), False, "true or false"), wo), topic)
+                      _value(t, "fsync", Key((bool,), False, "true or false"), wo), topic, **images)
 
 
 def parse_scene(data: dict, path: Path | None, base: Path | None = None) -> Scene:
@@ -650,14 +663,21 @@ def output_table(out: str) -> dict[str, Any]:
 
 def scene_from_flags(source: str, bundle: str = "default", background: str | None = None,
                      outputs: list[str] | None = None, ros2: str | None = None, name: str = "sensor",
-                     fps: float | None = None, live_status: bool = False) -> Scene:
-    """The Scene a TOML file with these settings would give (validated the same way)."""
+                     fps: float | None = None, live_status: bool = False, mcap_frames: bool = False) -> Scene:
+    """The Scene a TOML file with these settings would give (validated the same way).
+    mcap_frames: the .mcap outputs also log each frame and its contact mask."""
     sensor = {"name": name, **source_table(source)}
     if background is not None:
         sensor["background"] = str(_expand(background).absolute())
     if fps is not None:
         sensor["fps"] = int(fps) if sensor["source"] == "digit" and float(fps).is_integer() else fps
     outs = [output_table(o) for o in outputs or []]
+    if mcap_frames:
+        if not any(o["kind"] == "mcap" for o in outs):
+            raise SceneError("--mcap-frames: no --out FILE.mcap to log the frames to")
+        for o in outs:
+            if o["kind"] == "mcap":
+                o.update(frames=True, mask=True)
     if ros2 is not None:
         outs.append({"kind": "ros2", "topic": ros2})
     outs.insert(0, {"kind": "stdout", "live": live_status})
@@ -713,7 +733,7 @@ def scene_to_toml(scene: Scene) -> str:
         for k in ("path", "topic"):
             if getattr(o, k) is not None:
                 lines.append(f"{k} = {_toml_value(getattr(o, k))}")
-        for k in ("live", "fsync"):
+        for k in ("live", "fsync", "frames", "mask"):
             if getattr(o, k):
                 lines.append(f"{k} = true")
     return "\n".join(lines) + "\n"
@@ -754,7 +774,9 @@ def bundle_problems(scene: Scene) -> list[str]:
 
 def _output_line(o: OutputSpec) -> str:
     target = f" {o.path}" if o.path else (f" topic {o.topic}" if o.topic else "")
-    return f"  output       {o.kind}{target}{' (live status line)' if o.live else ''}"
+    images = " + ".join(w for w, on in (("frames", o.frames), ("contact masks", o.mask)) if on)
+    return (f"  output       {o.kind}{target}{' (live status line)' if o.live else ''}"
+            + (f" (with {images})" if images else ""))
 
 
 def describe_scene(scene: Scene) -> list[str]:
@@ -841,7 +863,7 @@ def open_outputs(scene: Scene, p99_ms=None) -> list:
             elif o.kind == "mcap":
                 from .outputs.mcap_log import McapWriter  # the 'mcap' extra, imported only now
 
-                sinks.append(McapWriter(path, fsync=o.fsync))
+                sinks.append(McapWriter(path, frames=o.frames, mask=o.mask, fsync=o.fsync))
             elif o.kind == "ros2":
                 from .outputs.ros2_topic import Ros2Publisher  # the 'ros2' extra, imported only now
 

@@ -77,22 +77,20 @@ def test_scene_digit_is_a_hotplug_source_that_survives_unplug(udev, tmp_path):
     assert all(s.alive for s in rt.sensors) and rt.stats.source_errors == 0
 
 
-def test_hotplug_false_and_no_udev_give_a_plain_digit_source(udev, tmp_path, monkeypatch, caplog):
-    from tactile_force.firmware_bridge import digit
+def test_hotplug_false_and_no_udev_give_a_plain_digit_source(udev, tmp_path, monkeypatch, caplog, portraits):
+    from tactile_force.firmware_bridge import digit, discovery
     from tactile_force.firmware_bridge.digit import DigitSource
 
-    from tests.bridge.fakes import FakeSysfsDevice, make_fake_sysfs
+    from tests.bridge.fakes import FakeCamera, FakeSysfsDevice, landscape, make_fake_sysfs
 
     # The plain DigitSource finds its DIGIT by serial on a (fake) sysfs tree.
     roots = make_fake_sysfs(tmp_path / "hw", [FakeSysfsDevice("1-2", 0x2833, 0x0209, 0x0200, "D20001",
                                                               videos=[(2, 0)]),
                                               FakeSysfsDevice("1-3", 0x2833, 0x0209, 0x0200, "D20002",
                                                               devnum=6, videos=[(4, 0)])])
-    real_locate = digit.locate_sensor.__wrapped__ if hasattr(digit.locate_sensor, "__wrapped__") else None
-    from tactile_force.firmware_bridge import discovery
-
-    monkeypatch.setattr(digit, "locate_sensor", lambda sensor, find, _r=(): discovery.locate_sensor(sensor, find, roots))
-    del real_locate
+    monkeypatch.setattr(digit, "locate_sensor",
+                        lambda sensor, find, _r=(): discovery.locate_sensor(sensor, find, roots))
+    monkeypatch.setattr(digit, "open_v4l2", lambda node: FakeCamera([landscape(p) for p in portraits]))
     scene = _two_digits(tmp_path, hotplug=False)
     assert scene.sensors[0].hotplug is False and scene.sensors[1].hotplug is True
     assert "hotplug = false" in scene_to_toml(scene)

@@ -1,0 +1,34 @@
+"""README and docs match the code: every command, link and repo path they name exists."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+from tactile_force.edge.cli import COMMANDS
+
+REPO = Path(__file__).resolve().parents[1]
+PAGES = [REPO / "README.md", *sorted((REPO / "docs").glob("*.md")), *sorted((REPO / "docs" / "benchmarks").glob("*.md"))]
+TOP = ("edge/", "export/", "firmware_bridge/", "benchmarks/", "tests/", "docs/", ".ci/")
+
+
+@pytest.mark.parametrize("page", PAGES, ids=lambda p: str(p.relative_to(REPO)))
+def test_every_command_and_path_named_exists(page):
+    text = page.read_text()
+    for cmd in re.findall(r"tactile-force ([a-z][a-z-]+)", text):
+        assert cmd in COMMANDS, f"{page.name}: 'tactile-force {cmd}' is not a command"
+    for link in re.findall(r"\]\(([^)#]+)(?:#[^)]*)?\)", text):
+        if "://" in link:
+            continue
+        assert (page.parent / link).exists(), f"{page.name}: broken link {link}"
+    for path in re.findall(r"`((?:%s)[A-Za-z0-9_./-]+)`" % "|".join(re.escape(t) for t in TOP), text):
+        if any(ch in path for ch in "*<>") or path.endswith("/N.png"):
+            continue
+        assert (REPO / path.rstrip("/")).exists(), f"{page.name}: names {path}, which does not exist"
+
+
+def test_readme_has_no_placeholders():
+    text = (REPO / "README.md").read_text()
+    assert not re.search(r"\b[A-Z]+_(TABLE|RESULT)\b", text)
