@@ -1,12 +1,24 @@
-"""Print the core dependencies pinned at their declared minimums (``name>=X`` -> ``name==X``)."""
+"""Print the core dependencies pinned at their declared minimums (``name>=X`` -> ``name==X``).
+
+A dependency with a ``python_version < 'X.Y'`` marker is printed only where it applies.
+"""
 
 import pathlib
 import re
+import sys
 import tomllib
 
 project = tomllib.loads(pathlib.Path(__file__).resolve().parents[1].joinpath("pyproject.toml").read_text())["project"]
 for dep in project["dependencies"]:
-    m = re.fullmatch(r"\s*([A-Za-z0-9_.-]+)\s*>=\s*([0-9][0-9A-Za-z.]*)\s*", dep)
+    spec, _, marker = dep.partition(";")
+    marker = marker.strip()
+    if marker:
+        m = re.fullmatch(r"python_version\s*<\s*['\"](\d+)\.(\d+)['\"]", marker)
+        if not m:
+            raise SystemExit(f"pyproject dependency {dep!r}: .ci/min_versions.py understands only python_version < 'X.Y'")
+        if sys.version_info[:2] >= (int(m.group(1)), int(m.group(2))):
+            continue
+    m = re.fullmatch(r"\s*([A-Za-z0-9_.-]+)\s*>=\s*([0-9][0-9A-Za-z.]*)\s*", spec)
     if not m:
         raise SystemExit(f"pyproject dependency {dep!r}: declare a minimum as NAME>=VERSION")
     print(f"{m.group(1)}=={m.group(2)}")
