@@ -26,26 +26,24 @@ from .reading import Flags, ForceReading
 PLOT_NAME = "force_vs_time.png"
 
 
-def positive_int(text: str) -> int:
-    """argparse type: an integer >= 1."""
+def _int_at_least(minimum: int, text: str) -> int:
     try:
         v = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"{v}: expected an integer >= 1")
+    if v < minimum:
+        raise argparse.ArgumentTypeError(f"{v}: expected an integer >= {minimum}")
     return v
+
+
+def positive_int(text: str) -> int:
+    """argparse type: an integer >= 1."""
+    return _int_at_least(1, text)
 
 
 def non_negative_int(text: str) -> int:
     """argparse type: an integer >= 0."""
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"{v}: expected an integer >= 0")
-    return v
+    return _int_at_least(0, text)
 
 
 def positive_float(text: str) -> float:
