@@ -63,19 +63,18 @@ def digit_backgrounds() -> dict[str, np.ndarray]:
 
 def aurova(heldout: bool = False) -> list[tuple[np.ndarray, float]]:
     """(frame, force N) of the shared AUROVA grasp (or its held-out half), paired by number."""
-    root = DATA / ("aurova_digit_grasp_heldout" if heldout else "aurova_digit_grasp")
-    out = []
-    for p in sorted((root / "images").glob("*.png"), key=lambda q: int(q.stem)):
-        force = float((root / "forces" / f"force_{p.stem}.txt").read_text().split()[0])
-        out.append((_img(str(root.relative_to(DATA)), "images", p.name), force))
-    return out
+    from tactile_force.edge.dataset import AuthorsDataset  # the package's one labelled-data reader
+
+    return [(s.frame, float(s.force_n)) for s in
+            AuthorsDataset(DATA / ("aurova_digit_grasp_heldout" if heldout else "aurova_digit_grasp"))]
 
 
-def wedge_grasps(every: int = 1) -> list[tuple[str, list[np.ndarray], list[float]]]:
-    """GelSight Wedge grasps as a user would feed them to a DIGIT bundle: the raw view warped
-    with the 4 gel corners to 400x300, 25 px cropped per edge, turned portrait and resized to
-    320x240 (INTER_AREA). (name, frames, forces N); frame 0 has no contact."""
-    root = DATA / "gelsight_wedge_grasps"
+def wedge_frames(video: Path) -> list[np.ndarray]:
+    """Frames of one GelSight Wedge grasp video (``ROOT/example_data/DATE/NAME.avi``) as a user
+    would feed them to a DIGIT bundle: the raw view warped with the 4 gel corners of
+    ``ROOT/wedge_config/config_100.csv`` to 400x300, 25 px cropped per edge, turned portrait
+    and resized to 320x240 (INTER_AREA), HxWx3 uint8 BGR; frame 0 has no contact."""
+    root = video.parents[2]
     corners = {}
     for line in (root / "wedge_config" / "config_100.csv").read_text().splitlines()[1:]:
         name, x, y = line.split(",")
@@ -84,19 +83,24 @@ def wedge_grasps(every: int = 1) -> list[tuple[str, list[np.ndarray], list[float
     w, h = WEDGE_WARP
     dst = np.array([[0, 0], [w, 0], [0, h], [w, h]], np.float32)
     warp = cv2.getPerspectiveTransform(src, dst)
+    cap = cv2.VideoCapture(str(video))
+    frames = []
+    while True:
+        ok, f = cap.read()
+        if not ok:
+            break
+        g = cv2.warpPerspective(f, warp, (w, h))[WEDGE_CROP:-WEDGE_CROP, WEDGE_CROP:-WEDGE_CROP]
+        frames.append(cv2.resize(cv2.rotate(g, cv2.ROTATE_90_CLOCKWISE), (240, 320), interpolation=cv2.INTER_AREA))
+    cap.release()
+    return frames
+
+
+def wedge_grasps(every: int = 1) -> list[tuple[str, list[np.ndarray], list[float]]]:
+    """Every GelSight Wedge grasp (:func:`wedge_frames`): (name, frames, forces N)."""
     out = []
-    for video in sorted((root / "example_data").glob("*/*.avi")):
+    for video in sorted((DATA / "gelsight_wedge_grasps" / "example_data").glob("*/*.avi")):
         forces = [float(v) for v in video.with_name(video.stem + "_forces.csv").read_text().split()]
-        cap = cv2.VideoCapture(str(video))
-        frames = []
-        while True:
-            ok, f = cap.read()
-            if not ok:
-                break
-            g = cv2.warpPerspective(f, warp, (w, h))[WEDGE_CROP:-WEDGE_CROP, WEDGE_CROP:-WEDGE_CROP]
-            frames.append(cv2.resize(cv2.rotate(g, cv2.ROTATE_90_CLOCKWISE), (240, 320),
-                                     interpolation=cv2.INTER_AREA))
-        cap.release()
+        frames = wedge_frames(video)
         n = min(len(frames), len(forces))
         out.append((f"{video.parent.name}/{video.stem}", frames[:n:every], forces[:n:every]))
     return out

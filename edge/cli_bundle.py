@@ -8,11 +8,8 @@ any check fails (the reason on one line).
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
-
-from .typed_json import to_json
 
 
 def configure_bundle(p: argparse.ArgumentParser) -> None:
@@ -40,7 +37,7 @@ def main_bundle(args: argparse.Namespace) -> int:
     b = load_bundle(args.path)
     m = b.manifest
     if args.json:
-        print(json.dumps(to_json(m), indent=2))
+        print(m.to_json(), end="")
         return 0
     for line in describe_manifest(b):
         print(line)

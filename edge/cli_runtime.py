@@ -19,42 +19,12 @@ from typing import TextIO
 
 import numpy as np
 
+from .cli_args import non_negative_int, positive_float, positive_int
 from .errors import CheckFailedError, SceneError, SourceError
 from .reading import Flags, ForceReading
 
 #: File name of the demo's force-over-time plot (README and docs name it too).
 PLOT_NAME = "force_vs_time.png"
-
-
-def _int_at_least(minimum: int, text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
-    if v < minimum:
-        raise argparse.ArgumentTypeError(f"{v}: expected an integer >= {minimum}")
-    return v
-
-
-def positive_int(text: str) -> int:
-    """argparse type: an integer >= 1."""
-    return _int_at_least(1, text)
-
-
-def non_negative_int(text: str) -> int:
-    """argparse type: an integer >= 0."""
-    return _int_at_least(0, text)
-
-
-def positive_float(text: str) -> float:
-    """argparse type: a finite number > 0."""
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not (math.isfinite(v) and v > 0):
-        raise argparse.ArgumentTypeError(f"{v}: expected a finite number > 0")
-    return v
 
 
 # -- scene show ---------------------------------------------------------------------------

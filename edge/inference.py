@@ -140,11 +140,6 @@ class OnnxForceModel:
         return self._run(n).copy()
 
 
-def error_score(bundle: Bundle) -> float:
-    """Lower is more accurate: RE vs the labels in the manifest's error report; inf if absent."""
-    return bundle.manifest.error_score()
-
-
 def _dims(shape: list) -> list[int | None]:
     return [d if isinstance(d, int) and d > 0 else None for d in shape]
 
@@ -236,6 +231,6 @@ def choose_bundle(paths: list[str | os.PathLike], budget_ms: float, threads: int
     for p in paths:
         m = OnnxForceModel(p, threads=threads)
         key = str(p)
-        models[key], p99[key], score[key] = m, measure_p99_ms(m, runs), error_score(m.bundle)
+        models[key], p99[key], score[key] = m, measure_p99_ms(m, runs), m.bundle.manifest.error_score()
     best, reason = pick_from_ladder(list(models), p99, score, budget_ms)
     return models[best], LadderChoice(Path(best), reason, p99, score)

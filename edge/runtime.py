@@ -41,6 +41,7 @@ import threading
 import time
 from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass, field
+from pathlib import Path
 from typing import Any, Protocol, cast
 
 import numpy as np
@@ -163,6 +164,10 @@ class LatencyWindow:
         return {s: {"p50": float(p[0, k]), "p99": float(p[1, k])} for k, s in enumerate(STAGES)}
 
 
+#: Files shipped with the package (``package:FILE`` in scenes and manifests).
+ASSETS_DIR = Path(__file__).resolve().parent / "assets"
+
+
 def depth_options_for(options: dict | None = None, manifest: Manifest | None = None) -> dict:
     """DepthOptions fields for a depth bundle: the scene's ``[depth]`` table, else what the
     bundle's manifest recorded at training time (``manifest.depth``). A mapping named
@@ -187,9 +192,7 @@ def depth_options_for(options: dict | None = None, manifest: Manifest | None = N
 def resolve_package_path(path: str) -> str:
     """``package:FILE`` -> the file shipped in tactile_force/edge/assets; other paths unchanged."""
     if path.startswith("package:"):
-        from pathlib import Path
-
-        return str(Path(__file__).resolve().parent / "assets" / path.split(":", 1)[1])
+        return str(ASSETS_DIR / path.split(":", 1)[1])
     return path
 
 

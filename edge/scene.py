@@ -63,6 +63,7 @@ else:  # Python 3.10: the same parser from PyPI (a core dependency there)
 
 from .errors import AcceleratorUnavailableError, BundleError, SceneError, SourceError
 from .gate import ContactGate, GateOptions
+from .runtime import resolve_package_path
 
 BACKENDS = ("cpu", "oak")
 OUTPUT_KINDS = ("stdout", "csv", "jsonl", "mcap", "ros2")
@@ -70,7 +71,6 @@ OUTPUT_KINDS = ("stdout", "csv", "jsonl", "mcap", "ros2")
 FILE_OUTPUTS = ("csv", "jsonl", "mcap")
 DEPTH_MODES = ("exact", "paper")
 PACKAGE_DIR = Path(__file__).resolve().parent
-ASSETS_DIR = PACKAGE_DIR / "assets"
 
 Clock = Callable[[], int]
 
@@ -430,7 +430,7 @@ def _depth(data: dict, base: Path, where: str) -> dict[str, Any]:
             out[k] = float(v) if isinstance(v, int) and float in key.types else v
     if "mapping" in out:
         m = str(out["mapping"])
-        out["mapping"] = str(ASSETS_DIR / m.split(":", 1)[1]) if m.startswith("package:") else str(_in_path(base, m))
+        out["mapping"] = resolve_package_path(m) if m.startswith("package:") else str(_in_path(base, m))
     return out
 
 

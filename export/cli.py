@@ -9,6 +9,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from tactile_force.edge.cli_args import int_at_least, positive_int
+
 VARIANT_HELP = ("rgbmod (RGB, multi-level head), d (depth, plain ResNet-18), dmod (depth, multi-level head), "
                 "rgbmod+d (RGB and depth branches)")
 
@@ -24,22 +26,9 @@ def _fraction(text: str) -> float:
         raise argparse.ArgumentTypeError(f"{text!r} is not a number or a fraction like 1/4") from None
 
 
-def _whole(lo: int):
-    """argparse type: a whole number >= ``lo`` (argparse turns the error into exit 2)."""
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
-        if value < lo:
-            raise argparse.ArgumentTypeError(f"{value} is too small; expected a whole number >= {lo}")
-        return value
-    return parse
-
-
 def _opset(text: str) -> int:
     """argparse type: an ONNX opset from 17 to the newest one the installed onnx package knows."""
-    value = _whole(17)(text)
+    value = int_at_least(17)(text)
     import onnx
 
     newest = onnx.defs.onnx_opset_version()
@@ -136,9 +125,9 @@ def configure_quantize(p: argparse.ArgumentParser) -> None:
     p.add_argument("--per-tensor", action="store_true", help="one weight scale per tensor instead of per channel")
     p.add_argument("--keep-float", nargs="+", default=[], metavar="NODE",
                    help="node names to leave in float (see 'tactile-force bundle show --nodes')")
-    p.add_argument("--min-frames", type=_whole(1), default=10,
+    p.add_argument("--min-frames", type=positive_int, default=10,
                    help="refuse calibration with fewer frames (>= 1, default 10)")
-    p.add_argument("--max-frames", type=_whole(1), default=500,
+    p.add_argument("--max-frames", type=positive_int, default=500,
                    help="use at most this many calibration frames (>= 1, default 500; there is no 'unlimited')")
     p.add_argument("--background", type=Path,
                    help="no-contact frame of the calibration frames' sensor: records their statistics in the "

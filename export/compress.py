@@ -296,9 +296,7 @@ def host_description() -> str:
 
 
 def _figures(pred: np.ndarray, ref: np.ndarray) -> dict:
-    s = error_stats(pred, ref)
-    return {"n": s.n, "re_mean": s.re_mean, "re_std": s.re_std, "mae_mean": s.mae_mean, "mae_std": s.mae_std,
-            "n_excluded_re": s.n_excluded_re}
+    return error_stats(pred, ref).as_dict()  # the fields of manifest.ErrorFigures
 
 
 def _write_json(path: Path, obj: object) -> None:

@@ -218,11 +218,6 @@ def _fp16(model, out_path: Path, exclude: list[str]) -> dict:
     return {"format": "float16 weights and activations", "io": "uint8 input, float32 output kept"}
 
 
-def _figures(stats) -> ErrorFigures:
-    d = stats.as_dict()
-    return ErrorFigures(**{k: d[k] for k in ("n", "re_mean", "re_std", "mae_mean", "mae_std", "n_excluded_re")})
-
-
 def _error_report(fp32_bytes: bytes, q_bytes: bytes, data: CalibrationData, used_for_calibration: bool) -> ErrorReport:
     ref = run_ort(ort_session(fp32_bytes, threads=2), data)
     got = run_ort(ort_session(q_bytes, threads=2), data)
@@ -230,19 +225,14 @@ def _error_report(fp32_bytes: bytes, q_bytes: bytes, data: CalibrationData, used
         raise QuantizeError("quantized model gives non-finite forces (NaN/inf); "
                             "try --method percentile or --keep-float")
     diff = np.abs(got - ref)
-    vs_fp32 = _figures(error_stats(got, ref))
+    # ErrorFigures has exactly the fields of edge.metrics.ErrorStats
     rep = ErrorReport(data=data.source, frames=len(data), same_frames_as_calibration=used_for_calibration,
-                      vs_fp32=DiffFigures(**vars_of(vs_fp32), max_abs_diff_n=float(diff.max()),
+                      vs_fp32=DiffFigures(**error_stats(got, ref).as_dict(), max_abs_diff_n=float(diff.max()),
                                           mean_abs_diff_n=float(diff.mean())))
     if data.forces is not None:
-        rep.vs_truth = _figures(error_stats(got, data.forces))
-        rep.fp32_vs_truth = _figures(error_stats(ref, data.forces))
+        rep.vs_truth = ErrorFigures(**error_stats(got, data.forces).as_dict())
+        rep.fp32_vs_truth = ErrorFigures(**error_stats(ref, data.forces).as_dict())
     return rep
-
-
-def vars_of(fig: ErrorFigures) -> dict:
-    """The ErrorFigures fields of ``fig`` as keyword arguments."""
-    return {f.name: getattr(fig, f.name) for f in dataclasses.fields(ErrorFigures)}
 
 
 def quantize_bundle(src: Bundle | str | os.PathLike, dest: str | os.PathLike, options: QuantizeOptions | None = None,

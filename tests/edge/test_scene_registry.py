@@ -12,8 +12,8 @@ import pytest
 from tactile_force.edge.errors import SceneError, SourceError
 from tactile_force.edge.gate import GateOptions
 from tactile_force.edge.reading import Flags
+from tactile_force.edge.runtime import ASSETS_DIR
 from tactile_force.edge.scene import (
-    ASSETS_DIR,
     SOURCE_KINDS,
     build_scene,
     describe_scene,

@@ -285,19 +285,9 @@ def test_virtual_grasps_have_at_most_one_percent_false_alarms(model):
 
 # -- another sensor type: GelSight Wedge frames on the DIGIT bundle -------------------------------
 def _wedge(video) -> list[np.ndarray]:
-    root = shared_data("gelsight_wedge_grasps")
-    rows = (root / "wedge_config" / "config_100.csv").read_text().splitlines()[1:]
-    src = np.float32([[float(v) for v in r.split(",")[1:]] for r in rows])
-    warp = cv2.getPerspectiveTransform(src, np.float32([[0, 0], [400, 0], [0, 300], [400, 300]]))
-    cap = cv2.VideoCapture(str(video))
-    frames = []
-    while True:
-        ok, f = cap.read()
-        if not ok:
-            break
-        g = cv2.warpPerspective(f, warp, (400, 300))[25:-25, 25:-25]
-        frames.append(cv2.resize(cv2.rotate(g, cv2.ROTATE_90_CLOCKWISE), (240, 320), interpolation=cv2.INTER_AREA))
-    return frames
+    from benchmarks.trust import wedge_frames
+
+    return wedge_frames(video)
 
 
 def test_gelsight_wedge_frames_never_give_a_silent_force(model):
