@@ -124,9 +124,12 @@ def main() -> None:
         lines.append(f"| {name} | {_time(fn, max(20, args.repeats // 4)):.2f} |")
     import sys
 
-    if str(REPO) not in sys.path:  # run as a script: python benchmarks/bench_depth.py
-        sys.path.insert(0, str(REPO))
-    from benchmarks.machine import describe_machine, header
+    if __package__:  # imported as tactile_force.benchmarks.bench_depth or benchmarks.bench_depth
+        from .machine import describe_machine, header
+    else:  # run as a script: python benchmarks/bench_depth.py
+        if str(REPO) not in sys.path:
+            sys.path.insert(0, str(REPO))
+        from benchmarks.machine import describe_machine, header
 
     import scipy
 

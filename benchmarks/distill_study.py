@@ -64,7 +64,7 @@ def _train_labelled(name: str, spec, data, epochs: int, seed: int = 0) -> Path:
 def _bundles(ckpt: Path, data, int8: bool) -> Path:
     from tactile_force.export import ExportOptions, QuantizeOptions, export_bundle, quantize_bundle
 
-    from benchmarks.reference import TrainConfig, calibration_data
+    from .reference import TrainConfig, calibration_data
 
     cfg = TrainConfig("rgbmod", 1.0, 1)
     fp32 = ckpt.parent / "fp32"
@@ -110,7 +110,7 @@ def _interleaved_latency(paths: dict[str, Path], rounds: int = 20, calls: int = 
 def _unlabelled(n: int, seed: int) -> Path:
     from tactile_force.edge.synthetic import DatasetOptions, ForceDistribution, generate_dataset, paper_split
 
-    from benchmarks.reference import ABOVE_RANGE_SHARE, SPLIT
+    from .reference import ABOVE_RANGE_SHARE, SPLIT
 
     root = ROOT / f"unlabelled-n{n}-seed{seed}"
     if not (root / "DONE").is_file():
@@ -124,7 +124,7 @@ def run(args) -> dict:
     from tactile_force.export import ModelSpec
     from tactile_force.export.compress import CompressOptions, compress_model
 
-    from benchmarks.reference import ensure_dataset, load_arrays
+    from .reference import ensure_dataset, load_arrays
 
     data = load_arrays(ensure_dataset())
     t_rung = _rung(args.teacher)[0]
