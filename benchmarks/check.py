@@ -14,6 +14,7 @@ import enum
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TypeVar
 
 from .bundles import ModelConfig, rgbmod_candidates, trained_int8
 from .latency import COMPACT, LatencyCase, LatencyResult, measure
@@ -111,6 +112,48 @@ class CheckResult:
         return "\n".join(lines)
 
 
+K = TypeVar("K")
+
+
+def judge(once: Callable[[], tuple[K, float]], budget_ms: float, repeats: int = 3, pause_s: float = 30.0,
+          window: Window | None = None, sleep: Callable[[float], None] = time.sleep
+          ) -> tuple[K, Verdict, list[Attempt]]:
+    """Measure with ``once() -> (result, p99 ms)`` while watching the machine and judge the budget.
+
+    One implementation of the verdict for ``python -m benchmarks --check`` and ``tactile-force
+    bench``: a new attempt only after one over budget on a busy machine (``pause_s`` seconds
+    later, ``repeats`` attempts at most); the attempt with the lowest p99 is kept. PASS when
+    its p99 <= ``budget_ms``; OVER_BUDGET when a quiet attempt was over it; MACHINE_BUSY when
+    every attempt was over budget on a busy machine.
+
+    Returns
+    -------
+    (kept result, verdict, attempts): the attempts carry each p99 (ms) and the machine state.
+    """
+    window = window or CpuWindow
+    attempts: list[Attempt] = []
+    kept: tuple[K, float] | None = None
+    for k in range(max(1, repeats)):
+        w = window()
+        result, p99 = once()
+        state = w.stop()
+        attempts.append(Attempt(p99, state))
+        if kept is None or p99 < kept[1]:
+            kept = (result, p99)
+        if p99 <= budget_ms or not state.busy:
+            break
+        if k + 1 < repeats:
+            sleep(pause_s)
+    assert kept is not None  # at least one attempt ran
+    if kept[1] <= budget_ms:
+        verdict = Verdict.PASS
+    elif any(not a.machine.busy for a in attempts):
+        verdict = Verdict.OVER_BUDGET
+    else:
+        verdict = Verdict.MACHINE_BUSY
+    return kept[0], verdict, attempts
+
+
 def _best(measure_fn: Measure, frames: int, budget_ms: float) -> tuple[str, LatencyResult, list]:
     measured = []
     for path, which, re in rgbmod_candidates():
@@ -132,28 +175,12 @@ def run_check(measure_fn: Measure | None = None, frames: int = 1000, budget_ms: 
     inject fakes); repeats: attempts at most, a new one only after an attempt over budget on
     a busy machine, ``pause_s`` seconds later; window: machine watcher (tests inject one)."""
     measure_fn = measure_fn or measure
-    window = window or CpuWindow
-    attempts: list[Attempt] = []
-    kept: tuple[str, LatencyResult, list] | None = None
-    for k in range(max(1, repeats)):
-        w = window()
+
+    def once() -> tuple[tuple[str, LatencyResult, list], float]:
         which, best, measured = _best(measure_fn, frames, budget_ms)
-        state = w.stop()
-        attempts.append(Attempt(best.stages[JUDGED].p99, state))
-        if kept is None or best.stages[JUDGED].p99 < kept[1].stages[JUDGED].p99:
-            kept = (which, best, measured)
-        if best.stages[JUDGED].p99 <= budget_ms or not state.busy:
-            break
-        if k + 1 < repeats:
-            sleep(pause_s)
-    assert kept is not None  # at least one attempt ran
-    which, best, measured = kept
-    if best.stages[JUDGED].p99 <= budget_ms:
-        verdict = Verdict.PASS
-    elif any(not a.machine.busy for a in attempts):
-        verdict = Verdict.OVER_BUDGET
-    else:
-        verdict = Verdict.MACHINE_BUSY
+        return (which, best, measured), best.stages[JUDGED].p99
+
+    (which, best, measured), verdict, attempts = judge(once, budget_ms, repeats, pause_s, window, sleep)
     others = {}
     for v in ("d", "rgbmod+d"):
         cfg = ModelConfig(v, COMPACT.width, COMPACT.k)
