@@ -217,10 +217,12 @@ class BareOnnxRuntime:
 
 
 def measure(case: LatencyCase, pool: FramePool | None = None, clock: Clock = time.monotonic_ns,
-            bare: bool = True) -> LatencyResult:
+            bare: bool = True, depth: Callable[[], object] | None = None) -> LatencyResult:
     """Run ``case`` through ``ForceRuntime`` over the frame pool (cycled) and return
     per-stage percentiles in ms; ``bare``: also time the graph in a bare onnxruntime
-    session (onnxruntime cases). ``clock`` is the runtime's clock (tests inject one)."""
+    session (onnxruntime cases). ``clock`` is the runtime's clock (tests inject one).
+    ``depth``: the depth-stage factory for depth variants (default: the virtual DIGIT's
+    calibration, :func:`benchmarks.frames.depth_stage`)."""
     from tactile_force.edge import ContactGate
     from tactile_force.edge.runtime import ForceRuntime, RuntimeOptions, Sensor
 
@@ -233,7 +235,7 @@ def measure(case: LatencyCase, pool: FramePool | None = None, clock: Clock = tim
     source = MemorySource(pool.rgb, n_total, clock)
     rt = ForceRuntime([Sensor("bench", source, gate)], predictor,
                       RuntimeOptions(threads=case.threads, deadline_ms=1e9, latency_window=16),
-                      clock=clock, depth_factory=depth_stage if case.needs_depth else None)
+                      clock=clock, depth_factory=(depth or depth_stage) if case.needs_depth else None)
     lat = np.full((n_total, 5), np.nan)
     contact = np.zeros(n_total, bool)
     from tactile_force.edge.reading import Flags
