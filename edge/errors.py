@@ -24,6 +24,18 @@ class BundleError(TactileForceError):
     """A model bundle is missing, truncated, corrupted or does not match its manifest."""
 
 
+class ModelClosedError(TactileForceError):
+    """A model (or a runtime) was used after ``close()``; the message names the bundle."""
+
+
+class OptionsError(TactileForceError, ValueError):
+    """An options object (RuntimeOptions, ...) holds a value outside its range; the message names the field."""
+
+
+class SensorMismatchError(TactileForceError):
+    """Frames come from another sensor than the one a calibration or background belongs to."""
+
+
 class DatasetError(TactileForceError):
     """A labelled dataset on disk is missing files or holds unparsable ones."""
 

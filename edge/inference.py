@@ -9,6 +9,7 @@ the session (IO binding: no per-call feed dict or output allocation), warm-up at
 from __future__ import annotations
 
 import os
+import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -16,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from .bundle import Bundle, load_bundle
-from .errors import BundleError, FrameError
+from .errors import BundleError, FrameError, ModelClosedError
 from .frames import FRAME_COLS, FRAME_ROWS, check_batch
 from .manifest import InputKind
 
@@ -52,6 +53,7 @@ class OnnxForceModel:
         if threads < 1:
             raise ValueError(f"threads={threads}: expected >= 1 intra-op threads")
         self.threads = threads
+        self._lock = threading.Lock()  # predict: the bound buffers are shared by every caller
         so = ort.SessionOptions()
         so.intra_op_num_threads = threads
         so.inter_op_num_threads = 1
@@ -80,10 +82,16 @@ class OnnxForceModel:
     def needs_depth(self) -> bool:
         return self.depth_name is not None
 
+    @property
+    def closed(self) -> bool:
+        """True after :meth:`close` (predict then raises :class:`ModelClosedError`)."""
+        return self.session is None
+
     def close(self) -> None:
-        """Release the ONNX Runtime session (idempotent)."""
-        self._bindings = []
-        self.session = None
+        """Release the ONNX Runtime session (idempotent; waits for a predict in progress)."""
+        with self._lock:
+            self._bindings = []
+            self.session = None
 
     def _feed(self, n: int) -> dict[str, np.ndarray]:
         feed: dict[str, np.ndarray] = {}
@@ -122,7 +130,21 @@ class OnnxForceModel:
     def predict(self, rgb: np.ndarray | None, depth: np.ndarray | None = None) -> np.ndarray:
         """Forces in newtons, (N,) float32, for rgb (N,320,240,3) uint8 BGR and, for
         depth variants, depth (N,320,240,1) uint8. N is 1 or 2. D / Dmod bundles read only
-        the depth images (rgb may then be None)."""
+        the depth images (rgb may then be None).
+
+        Thread-safe: one model may serve several threads or runtimes (two grippers); calls
+        are serialised by a lock around fill + run + copy of the shared bound buffers (each
+        call gets its own answer; uncontended cost well under a microsecond). For parallel
+        inference give each runtime its own model. Raises :class:`ModelClosedError` after
+        :meth:`close`."""
+        with self._lock:
+            if self.session is None:
+                raise ModelClosedError(f"{self.bundle.path}: this OnnxForceModel was closed; load the bundle again "
+                                       "(or pass owns_model=False to runtimes that share a model you close yourself)")
+            return self._predict(rgb, depth)
+
+    def _predict(self, rgb: np.ndarray | None, depth: np.ndarray | None) -> np.ndarray:
+        """:meth:`predict` without the lock and the closed check (the caller holds the lock)."""
         if rgb is None and self._rgb is None and depth is not None:
             n = check_batch(depth, "depth", DEPTH_SHAPE, MAX_BATCH).shape[0]
         else:

@@ -47,7 +47,7 @@ from typing import Any, Protocol, cast
 import numpy as np
 
 from .data_stats import DataStatsCheck
-from .errors import FrameError, SourceError
+from .errors import FrameError, ModelClosedError, OptionsError, SourceError
 from .frames import FRAME_SHAPE, FrameSource, TimedFrame, check_frame, exposure_problem
 from .gate import ContactGate, GateResult
 from .manifest import Manifest
@@ -100,13 +100,26 @@ class RuntimeOptions:
     report_stale: emit a ``stale`` reading for every superseded frame.
     latency_window: frames kept for the rolling p50/p99.
     grabbers: read each sensor in its own grabber thread (None: when there are two sensors;
-    one sensor is read in the loop's thread, the lowest-latency path)."""
+    one sensor is read in the loop's thread, the lowest-latency path).
+
+    Raises :class:`OptionsError` naming the field when deadline_ms is not a finite number > 0,
+    threads < 1 or latency_window < 1."""
 
     deadline_ms: float = 16.7
     threads: int = 1
     report_stale: bool = True
     latency_window: int = 600
     grabbers: bool | None = None
+
+    def __post_init__(self) -> None:
+        d = self.deadline_ms
+        if isinstance(d, bool) or not isinstance(d, (int, float)) or not math.isfinite(d) or d <= 0:
+            raise OptionsError(f"RuntimeOptions.deadline_ms={d!r}: expected a finite number of milliseconds > 0 "
+                               "(e.g. 16.7 for 60 fps)")
+        for name in ("threads", "latency_window"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
+                raise OptionsError(f"RuntimeOptions.{name}={v!r}: expected an integer >= 1")
 
 
 @dataclass
@@ -162,6 +175,29 @@ class LatencyWindow:
             return {s: {"p50": math.nan, "p99": math.nan} for s in STAGES}
         p = np.percentile(self._buf[: self._n], [50, 99], axis=0)
         return {s: {"p50": float(p[0, k]), "p99": float(p[1, k])} for k, s in enumerate(STAGES)}
+
+
+_USERS_LOCK = threading.Lock()
+#: id(model) -> [open runtimes using it, an owning runtime has closed]; the open runtimes hold the model alive.
+_USERS: dict[int, list] = {}
+
+
+def _attach(model: object) -> None:
+    with _USERS_LOCK:
+        _USERS.setdefault(id(model), [0, False])[0] += 1
+
+
+def _detach(model: object, owner: bool) -> bool:
+    """One runtime less uses ``model``; True when the model is to be closed now: the last
+    runtime has closed and one of them owned it."""
+    with _USERS_LOCK:
+        entry = _USERS.setdefault(id(model), [1, False])
+        entry[0] -= 1
+        entry[1] = entry[1] or owner
+        if entry[0] > 0:
+            return False
+        del _USERS[id(model)]
+        return bool(entry[1])
 
 
 #: Files shipped with the package (``package:FILE`` in scenes and manifests).
@@ -320,14 +356,27 @@ class ForceRuntime:
     """Serve force readings for one or two sensors from one model.
 
     sensors: one or two :class:`Sensor` (names unique). model: an object with
-    ``predict(rgb, depth=None)`` and ``needs_depth`` (OnnxForceModel, the OAK backend).
-    depth_factory: builds one depth stage per sensor for depth models (default
-    :func:`build_depth_stage`). clock: monotonic ns; give sources the same clock.
+    ``predict(rgb, depth=None)`` and ``needs_depth`` (OnnxForceModel, the OAK backend); a
+    closed model is refused (:class:`ModelClosedError`). One model may be shared by several
+    runtimes and threads (OnnxForceModel serialises its calls). depth_factory: builds one
+    depth stage per sensor for depth models (default :func:`build_depth_stage`). clock:
+    monotonic ns; give sources the same clock.
+
+    owns_model: whether :meth:`close` closes the model. True (default, what callers that
+    load a model for this runtime want): the model is closed, but only once the last runtime
+    using it has closed, so closing one of two runtimes sharing a model never breaks the
+    other. False: this runtime never asks for the model to be closed (a model you keep using
+    and close yourself; it is still closed when an owning runtime sharing it closes last).
     """
 
     def __init__(self, sensors: list[Sensor], model: ForceModel, options: RuntimeOptions | None = None,
                  clock: Callable[[], int] = time.monotonic_ns,
-                 depth_factory: Callable[[], object] | None = None, backend: str = "cpu") -> None:
+                 depth_factory: Callable[[], object] | None = None, backend: str = "cpu",
+                 owns_model: bool = True) -> None:
+        if getattr(model, "closed", False):
+            bundle = getattr(model, "bundle", None)
+            raise ModelClosedError(f"{getattr(bundle, 'path', 'model')}: ForceRuntime was given a closed model; "
+                                   "load the bundle again")
         if not 1 <= len(sensors) <= 2:
             raise ValueError(f"ForceRuntime: {len(sensors)} sensors; expected 1 or 2 (one per finger)")
         names = [s.name for s in sensors]
@@ -335,6 +384,8 @@ class ForceRuntime:
             raise ValueError(f"ForceRuntime: sensor names {names} must be unique")
         self.sensors = sensors
         self.model = model
+        self.owns_model = bool(owns_model)
+        self._closed = False
         self.options = options or RuntimeOptions()
         self.clock = clock
         self.backend = backend
@@ -363,6 +414,7 @@ class ForceRuntime:
         #: (sensor, timestamp ns, HxWx3 uint8 BGR copy or None, HxW uint8 0/255 mask copy or
         #: None) of the frames gated in the last step, when :attr:`tap` asks for them.
         self.tapped: list[tuple[str, int, np.ndarray | None, np.ndarray | None]] = []
+        _attach(model)  # last: a runtime that failed to build does not count as a user
 
     # -- public ---------------------------------------------------------------------------
     @property
@@ -373,8 +425,20 @@ class ForceRuntime:
         """Rolling p50/p99 per stage, ms."""
         return self._window.percentiles()
 
+    @property
+    def closed(self) -> bool:
+        """True after :meth:`close` (step, start and run then raise :class:`ModelClosedError`)."""
+        return self._closed
+
+    def _check_open(self) -> None:
+        if self._closed:
+            raise ModelClosedError(f"ForceRuntime({', '.join(s.name for s in self.sensors)}) was closed: its sources "
+                                   "and model are released; build a new runtime")
+
     def step(self) -> list[ForceReading]:
-        """Process the newest frame of every live sensor; [] once every source has ended."""
+        """Process the newest frame of every live sensor; [] once every source has ended.
+        Raises :class:`ModelClosedError` after :meth:`close`."""
+        self._check_open()
         out: list[ForceReading] = []
         pending: list[_Pending] = []
         self.tapped.clear()
@@ -399,6 +463,7 @@ class ForceRuntime:
         """Start the grabber threads (step() does on its first call) and wait up to ``wait_s``
         seconds until every live sensor has a frame read, so the first step serves them all
         in one batch. True when they have (always True without grabber threads)."""
+        self._check_open()
         if not self._use_grabbers:
             return True
         return self._start().wait_all([s for s in self.sensors if s.alive], wait_s)
@@ -414,6 +479,7 @@ class ForceRuntime:
         every sink as it is made. Sinks that want frames or contact masks (:func:`frame_sinks`)
         get each gated frame's first, through ``write_frame`` (the gate's full-resolution
         mask is made only then). Returns the stats with rolling latency percentiles."""
+        self._check_open()
         sinks = list(sinks)
         taps = frame_sinks(sinks)
         self.tap = (any(t.frames for t in taps), any(t.mask for t in taps))
@@ -433,7 +499,11 @@ class ForceRuntime:
         return self.stats
 
     def close(self) -> None:
-        """Stop the grabber threads, close every source, then the model."""
+        """Stop the grabber threads, close every source, then the model when this runtime
+        owns it and no other runtime still uses it (see ``owns_model``). Idempotent."""
+        if self._closed:
+            return
+        self._closed = True
         if self._grabbers is not None:
             self._grabbers.stop(timeout_s=0.0)
         for s in self.sensors:
@@ -442,7 +512,7 @@ class ForceRuntime:
             self._grabbers.stop()
             self._grabbers = None
         close_model = getattr(self.model, "close", None)
-        if close_model is not None:
+        if _detach(self.model, self.owns_model) and close_model is not None:
             close_model()
 
     # -- internals ------------------------------------------------------------------------

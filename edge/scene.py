@@ -978,7 +978,7 @@ def build_scene(scene: Scene, clock: Clock | None = None, warn: Callable[[str], 
                 source = LearningWatch(source, s.name, s.gate, warn)
             sensors.append(Sensor(s.name, source, gate))
         opts = RuntimeOptions(deadline_ms=scene.deadline_ms, threads=scene.threads, report_stale=scene.report_stale)
-        runtime = ForceRuntime(sensors, model, opts, clock=clock, backend=backend,
+        runtime = ForceRuntime(sensors, model, opts, clock=clock, backend=backend, owns_model=True,
                                depth_factory=lambda: build_depth_stage(
                                    scene.depth, getattr(getattr(model, "bundle", None), "manifest", None)))
         for sensor in runtime.sensors:

@@ -13,6 +13,7 @@ runtime catches to fall back to the CPU backend.
 from __future__ import annotations
 
 import os
+import threading
 import time
 from dataclasses import dataclass
 from datetime import timedelta
@@ -21,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from ..edge.bundle import Bundle, load_bundle
-from ..edge.errors import AcceleratorUnavailableError, FrameError, MissingExtraError, require
+from ..edge.errors import AcceleratorUnavailableError, FrameError, MissingExtraError, ModelClosedError, require
 from ..edge.frames import FRAME_SHAPE, check_batch
 
 
@@ -59,6 +60,7 @@ class OakForceModel:
     def __init__(self, bundle: Bundle | str | os.PathLike, options: OakOptions) -> None:
         self.bundle = bundle if isinstance(bundle, Bundle) else load_bundle(bundle)
         self.options = options
+        self._lock = threading.Lock()  # predict: one reused input frame and one queue pair for every caller
         m = self.bundle.manifest
         if len(m.inputs) != 1:
             raise AcceleratorUnavailableError(
@@ -108,7 +110,20 @@ class OakForceModel:
 
     def predict(self, rgb: np.ndarray | None, depth: np.ndarray | None = None) -> np.ndarray:
         """Forces in N, shape (N,) float32, for rgb (N,320,240,3) uint8 BGR or, for d/dmod
-        bundles, depth (N,320,240,1) uint8 (rgb may then be None), as the CPU backend."""
+        bundles, depth (N,320,240,1) uint8 (rgb may then be None), as the CPU backend.
+        Thread-safe (calls are serialised: the queues pair each input with the next output);
+        raises :class:`ModelClosedError` after :meth:`close`."""
+        with self._lock:
+            if self.closed:
+                raise ModelClosedError(f"{self.bundle.path}: this OakForceModel was closed; open the device again")
+            return self._predict(rgb, depth)
+
+    @property
+    def closed(self) -> bool:
+        """True after :meth:`close`."""
+        return getattr(self, "_device", None) is None
+
+    def _predict(self, rgb: np.ndarray | None, depth: np.ndarray | None) -> np.ndarray:
         if self._spec.kind == "depth":
             batch = self._check(depth, "depth", True)
         else:
@@ -131,6 +146,11 @@ class OakForceModel:
         return out
 
     def close(self) -> None:
+        """Stop the pipeline and release the device (idempotent; waits for a predict in progress)."""
+        with self._lock:
+            self._close()
+
+    def _close(self) -> None:
         pipeline = getattr(self, "_pipeline", None)
         if pipeline is not None:
             pipeline.stop()
