@@ -21,6 +21,7 @@ import numpy as np
 
 from .cli_args import non_negative_int, positive_float, positive_int
 from .errors import CheckFailedError, SceneError, SourceError
+from .plots import nice_ticks  # noqa: F401 - re-exported (tests, older callers)
 from .reading import Flags, ForceReading
 
 #: File name of the demo's force-over-time plot (README and docs name it too).
@@ -248,89 +249,19 @@ class DemoSummary:
 
 
 def _plot(readings: list[ForceReading], path: Path) -> str:
-    """Force over time, truth vs estimate, as PNG. matplotlib if installed, else OpenCV."""
+    """Force over time, truth vs estimate, as PNG (:func:`tactile_force.edge.plots.force_vs_time`)."""
     t = np.array([r.timestamp_ns for r in readings], np.float64)
     t = (t - t[0]) / 1e9 if t.size else t
     est = np.array([r.force_n for r in readings], np.float64)
     truth = np.array([np.nan if r.truth_n is None else r.truth_n for r in readings], np.float64)
-    try:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError:
-        return _plot_cv(t, est, truth, path)
-    fig, ax = plt.subplots(figsize=(9, 3.6), dpi=110)
-    ax.plot(t, truth, color="0.2", lw=1.5, label="ground truth")
-    ax.plot(t, est, ".", ms=3, color="tab:red", label="estimate")
-    ax.axhspan(1.0, 15.0, color="tab:green", alpha=0.06, label="valid range 1-15 N")
-    ax.set_xlabel("time (s)")
-    ax.set_ylabel("normal force (N)")
-    ax.legend(loc="upper right", fontsize=8)
-    ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
-    return "matplotlib"
-
-
-def nice_ticks(lo: float, hi: float, n: int = 6) -> list[float]:
-    """About ``n`` round tick values (1, 2, 2.5 or 5 x 10^k apart) covering [lo, hi]."""
-    span = max(hi - lo, 1e-9)
-    raw = span / max(n - 1, 1)
-    mag = 10 ** math.floor(math.log10(raw))
-    step = next(m * mag for m in (1, 2, 2.5, 5, 10) if m * mag >= raw)
-    first = math.ceil(lo / step - 1e-9) * step
-    return [round(first + k * step, 10) for k in range(int((hi - first) / step + 1e-9) + 1)]
+    return _plot_cv(t, est, truth, path)
 
 
 def _plot_cv(t: np.ndarray, est: np.ndarray, truth: np.ndarray, path: Path) -> str:
-    """The force plot drawn with OpenCV alone: axes with ticks and tick labels, axis titles,
-    a legend (grey line = truth, red dots = estimate)."""
-    import cv2
+    """The force plot (OpenCV, the package's one plotting module); returns how it was drawn."""
+    from .plots import force_vs_time
 
-    w, h = 900, 360
-    left, right, top, bottom = 70, 20, 30, 50
-    img = np.full((h, w, 3), 255, np.uint8)
-    finite = np.concatenate([est[np.isfinite(est)], truth[np.isfinite(truth)], [1.0]])
-    fmax = max(1.0, float(finite.max()))
-    tmax = max(float(t[-1]) if t.size else 1.0, 1e-6)
-    font, black, grid = cv2.FONT_HERSHEY_SIMPLEX, (0, 0, 0), (225, 225, 225)
-
-    def xy(ti: float, fi: float) -> tuple[int, int]:
-        return (round(left + ti / tmax * (w - left - right)),
-                round(h - bottom - fi / fmax * (h - top - bottom)))
-
-    for f in nice_ticks(0.0, fmax):
-        _, y = xy(0.0, f)
-        cv2.line(img, (left, y), (w - right, y), grid, 1)
-        cv2.line(img, (left - 5, y), (left, y), black, 1)
-        label = f"{f:g}"
-        (tw, th), _ = cv2.getTextSize(label, font, 0.45, 1)
-        cv2.putText(img, label, (left - 8 - tw, y + th // 2), font, 0.45, black, 1, cv2.LINE_AA)
-    for ti in nice_ticks(0.0, tmax):
-        x, _ = xy(ti, 0.0)
-        cv2.line(img, (x, top), (x, h - bottom), grid, 1)
-        cv2.line(img, (x, h - bottom), (x, h - bottom + 5), black, 1)
-        label = f"{ti:g}"
-        (tw, th), _ = cv2.getTextSize(label, font, 0.45, 1)
-        cv2.putText(img, label, (x - tw // 2, h - bottom + 8 + th), font, 0.45, black, 1, cv2.LINE_AA)
-    cv2.rectangle(img, (left, top), (w - right, h - bottom), black, 1)
-    pts = [xy(a, b) for a, b in zip(t, truth) if np.isfinite(b)]
-    if len(pts) > 1:
-        cv2.polylines(img, [np.array(pts, np.int32)], False, (60, 60, 60), 2)
-    for a, b in zip(t, est):
-        if np.isfinite(b):
-            cv2.circle(img, xy(a, b), 2, (40, 40, 220), -1)
-    cv2.putText(img, "time (s)", (w // 2 - 30, h - 10), font, 0.5, black, 1, cv2.LINE_AA)
-    ylabel = np.full((20, 150, 3), 255, np.uint8)
-    cv2.putText(ylabel, "normal force (N)", (2, 15), font, 0.5, black, 1, cv2.LINE_AA)
-    rot = cv2.rotate(ylabel, cv2.ROTATE_90_COUNTERCLOCKWISE)
-    y0 = (h - rot.shape[0]) // 2
-    img[y0:y0 + rot.shape[0], 4:4 + rot.shape[1]] = rot
-    cv2.putText(img, "grey line: ground truth   red dots: estimate", (left, top - 10), font, 0.45, black, 1,
-                cv2.LINE_AA)
-    cv2.imwrite(str(path), img)
+    force_vs_time(t, est, truth, path)
     return "opencv"
 
 
