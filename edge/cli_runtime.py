@@ -121,20 +121,28 @@ def cnn_readings(readings: list[ForceReading]) -> list[ForceReading]:
             and r.truth_n is not None and r.truth_n > 0]
 
 
-def truth_lines(readings: list[ForceReading]) -> list[str]:
-    """RE and MAE (mean +- std) over the CNN readings with truth, overall and per 1 N bin,
-    and how many frames with truth >= 1 N got no CNN reading; [] when no frame had truth."""
+def readings_error(readings: list[ForceReading]):
+    """The error of a replay with truth, as ``run`` reports it: (ErrorReport over
+    :func:`cnn_readings` or None when there is none, frames with truth, frames with truth
+    >= 1 N that got no CNN reading). ``tactile-force bench --data`` reports the same figures."""
     from .metrics import error_report
 
     with_truth = [r for r in readings if r.truth_n is not None and Flags.STALE not in r.flags]
-    if not with_truth:
-        return []
     cnn = cnn_readings(readings)
     in_cnn = {id(r) for r in cnn}
     missed = sum(1 for r in with_truth if r.truth_n is not None and r.truth_n >= 1.0 and id(r) not in in_cnn)
+    rep = error_report([r.force_n for r in cnn], [float(r.truth_n or 0.0) for r in cnn]) if cnn else None
+    return rep, len(with_truth), missed
+
+
+def truth_lines(readings: list[ForceReading]) -> list[str]:
+    """RE and MAE (mean +- std) over the CNN readings with truth, overall and per 1 N bin,
+    and how many frames with truth >= 1 N got no CNN reading; [] when no frame had truth."""
+    rep, n_truth, missed = readings_error(readings)
+    if not n_truth:
+        return []
     lines = []
-    if cnn:
-        rep = error_report([r.force_n for r in cnn], [float(r.truth_n or 0.0) for r in cnn])
+    if rep is not None:
         o = rep.overall
         lines.append(f"error vs truth over {o.n} CNN readings: RE {o.re_mean:.3f} +- {o.re_std:.3f}, "
                      f"MAE {o.mae_mean:.3f} +- {o.mae_std:.3f} N")
@@ -142,7 +150,7 @@ def truth_lines(readings: list[ForceReading]) -> list[str]:
             lines.append(f"  {label + ' N':>8}: RE {st.re_mean:.3f} +- {st.re_std:.3f}, "
                          f"MAE {st.mae_mean:.3f} +- {st.mae_std:.3f} N  (n={st.n})")
     else:
-        lines.append(f"error vs truth: no CNN reading among the {len(with_truth)} frames with truth")
+        lines.append(f"error vs truth: no CNN reading among the {n_truth} frames with truth")
     if missed:
         lines.append(f"{missed} frame(s) with truth >= 1 N got no force estimate (no_contact or invalid_input)")
     return lines
