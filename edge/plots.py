@@ -131,7 +131,8 @@ class Canvas:
             self.cv2.line(self.img, (px, y), (px, min(y + 6, bottom)), colour, 2)
         if label:
             tw, _ = self._size(label)
-            self._put(label, (min(px + 4, self.w - self.right - tw), top + 14), colour)
+            x = px + 4 if px + 4 + tw <= self.w - self.right - 2 else px - 4 - tw
+            self._put(label, (x, top + 14), colour)
 
     def hspan(self, y0: float, y1: float, colour=(230, 245, 230)) -> None:
         """A shaded horizontal band between data y0 and y1 (drawn under what follows)."""

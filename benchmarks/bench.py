@@ -1,0 +1,505 @@
+"""``tactile-force bench``: does a bundle meet its latency budget on THIS host, and at what error?
+
+What a robot host runs, with the core install only (numpy, onnxruntime, OpenCV; never torch,
+onnx or matplotlib): each bundle runs through ``ForceRuntime`` (one sensor, its contact gate,
+the depth stage for depth variants, the model) over virtual DIGIT frames in contact read from
+memory (:func:`benchmarks.latency.measure`), while the machine is watched
+(:class:`benchmarks.machine.CpuWindow`); the under-budget verdict per bundle is
+:func:`benchmarks.check.judge`'s (PASS / OVER_BUDGET / MACHINE_BUSY). With labelled data the
+error comes from a replay of that folder through the same runtime ``tactile-force run``
+builds, with the same metric code (:func:`tactile_force.edge.cli_runtime.readings_error`).
+
+The result is a :class:`BenchReport`, written as ``report.json`` (a stable contract, see
+docs/bench.md), ``report.md`` and ``pareto.png`` (error against p99 latency, the budget line).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import os
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+SCHEMA = "tactile-force-bench/1"
+REPORT_JSON, REPORT_MD, PLOT_PNG = "report.json", "report.md", "pareto.png"
+#: The stages a reading's latency carries, in report order (``depth`` only for depth variants).
+STAGES = ("source", "gate", "depth", "inference", "glue", "total")
+
+
+# ----------------------------------------------------------------------------- the contract
+@dataclass
+class Timing:
+    """Percentiles of one stage in ms over ``n`` frames (None: not measured, e.g. depth of RGBmod)."""
+
+    p50: float | None
+    p90: float | None
+    p99: float | None
+    mean: float | None
+    n: int
+
+
+@dataclass
+class BinError:
+    """RE (dimensionless) and MAE (N), mean and std (ddof=0), over ``n`` CNN readings."""
+
+    n: int
+    re_mean: float | None
+    re_std: float | None
+    mae_mean: float
+    mae_std: float
+
+
+@dataclass
+class BenchError:
+    """Error vs truth of a bundle on labelled data, measured through the runtime: overall
+    figures over the ``n`` readings where the CNN gave a force and truth > 0 N, per 1 N bin
+    of the true force (``"3-4"``: 3 <= f < 4 N), the labelled data and background used,
+    the frames with truth and how many with truth >= 1 N got no force (``missed``)."""
+
+    n: int
+    re_mean: float | None
+    re_std: float | None
+    mae_mean: float
+    mae_std: float
+    per_bin: dict[str, BinError]
+    data: str
+    background: str | None
+    frames_with_truth: int
+    missed: int
+
+
+@dataclass
+class MachineState:
+    """What the machine did during one attempt: 1-min load average and mean CPU clock (MHz)
+    before / after, the share of all cores' time other processes used, seconds, busy."""
+
+    load_before: float | None
+    load_after: float | None
+    mhz_before: float | None
+    mhz_after: float | None
+    others_share: float | None
+    seconds: float
+    busy: bool
+
+
+@dataclass
+class Attempt:
+    """One measurement of a bundle: its total p99 (ms) and the machine meanwhile."""
+
+    total_p99_ms: float | None
+    machine: MachineState
+
+
+@dataclass
+class BundleResult:
+    """One bundle's row: where it is, what it is, its latency through ``ForceRuntime``
+    (``total_ms``: frame arrival -> reading, what a reading's total_ms shows; ``stages_ms``:
+    source, gate, depth, inference, glue), its error on labelled data (None without
+    ``--data``), the error its manifest records (``manifest_re``, on the data it was made
+    with), and its verdict against the budget: PASS, OVER_BUDGET or MACHINE_BUSY."""
+
+    path: str
+    name: str
+    variant: str
+    precision: str
+    total_ms: Timing
+    stages_ms: dict[str, Timing]
+    error: BenchError | None
+    manifest_re: float | None
+    verdict: str
+    attempts: list[Attempt] = field(default_factory=list)
+    note: str = ""
+
+
+@dataclass
+class Machine:
+    """The host: CPU model, logical cores, RAM (GiB), OS, Python and runtime versions, and
+    its background load when the bench started."""
+
+    cpu: str
+    cores: int
+    ram_gib: float | None
+    os: str
+    python: str
+    versions: str
+    background_load: str
+
+
+@dataclass
+class BenchReport:
+    """What ``tactile-force bench`` measured (``report.json``; docs/bench.md).
+
+    verdict: PASS when every bundle's total p99 is within ``budget_ms``; OVER_BUDGET when
+    any bundle is over it on a quiet machine; else MACHINE_BUSY (no verdict)."""
+
+    schema: str
+    machine: Machine
+    budget_ms: float
+    threads: int
+    frames: int
+    verdict: str
+    bundles: list[BundleResult]
+    command: str = ""
+
+    def to_json(self) -> dict:
+        """Plain JSON values (NaN written as null)."""
+        from tactile_force.edge.typed_json import to_json
+
+        return to_json(self)
+
+    @classmethod
+    def from_json(cls, raw: object) -> BenchReport:
+        """Parse and validate a ``report.json`` value; a wrong field raises
+        :class:`tactile_force.edge.typed_json.TypedJsonError` naming its path."""
+        from tactile_force.edge.typed_json import from_json
+
+        return from_json(cls, raw, "report.json")
+
+    @property
+    def passed(self) -> bool:
+        return self.verdict == "PASS"
+
+
+def _f(v: float | None) -> float | None:
+    return None if v is None or not math.isfinite(v) else float(v)
+
+
+def _timing(p) -> Timing:
+    return Timing(_f(p.p50), _f(p.p90), _f(p.p99), _f(p.mean), int(p.n))
+
+
+def overall_verdict(verdicts: Sequence[str]) -> str:
+    """PASS when all pass, OVER_BUDGET when any is over budget, else MACHINE_BUSY."""
+    if verdicts and all(v == "PASS" for v in verdicts):
+        return "PASS"
+    return "OVER_BUDGET" if "OVER_BUDGET" in verdicts else "MACHINE_BUSY"
+
+
+# ----------------------------------------------------------------------------- what is measured
+def shipped_bundles() -> list[Path]:
+    """Every bundle shipped in the package (edge/models/*/ with a model.json), the default first.
+
+    Until ``tactile_force.edge`` lists them itself, the folders are read here."""
+    from tactile_force.edge.scene import default_bundle_path
+
+    default = default_bundle_path()
+    root = default.parent
+    others = sorted(p for p in root.iterdir() if p.is_dir() and p != default and (p / "model.json").is_file()) \
+        if root.is_dir() else []
+    return ([default] if (default / "model.json").is_file() else []) + others
+
+
+def contact_frames(n: int = 64, seed: int = 0):
+    """``n`` virtual DIGIT frames in contact and 5 no-contact backgrounds, rendered in memory
+    (no torch, no cache), as a :class:`benchmarks.frames.FramePool` (depth left empty: the
+    runtime's own depth stage makes it).
+
+    Parameters
+    ----------
+    n : int
+        Frames in contact (the contact gate opens on each).
+    seed : int
+        Seed of the virtual DIGIT and of the contacts.
+    """
+    from tactile_force.edge.synthetic import VirtualDigit, VirtualDigitOptions, paper_indenter_names
+
+    from .frames import FramePool
+
+    digit = VirtualDigit(VirtualDigitOptions(seed=seed))
+    rng = np.random.default_rng(seed)
+    names = paper_indenter_names() + ["sphere_4mm", "marble", "cylinder_8mm"]
+    bgs = np.stack([digit.render(None, 0.0).frame for _ in range(5)])
+    rgb: list[np.ndarray] = []
+    force: list[float] = []
+    gate_log = logging.getLogger("tactile_force.edge.gate")
+    level = gate_log.level
+    gate_log.setLevel(logging.ERROR)  # renders the gate cannot judge are dropped here, not warned about
+    try:
+        _render_contacts(digit, rng, names, bgs, n, rgb, force)
+    finally:
+        gate_log.setLevel(level)
+    arr = np.stack(rgb)
+    return FramePool(arr, np.zeros((*arr.shape[:3], 1), np.uint8), np.asarray(force, np.float32), bgs, [])
+
+
+def _render_contacts(digit, rng, names, bgs, n, rgb, force) -> None:
+    from tactile_force.edge.gate import ContactGate
+    from tactile_force.edge.synthetic import ContactSpec
+
+    while len(rgb) < n:
+        spec = ContactSpec(names[int(rng.integers(len(names)))], (rng.uniform(90, 230), rng.uniform(70, 170)),
+                           rotation_deg=float(rng.uniform(0, 360)))
+        f = float(rng.uniform(1.5, 14.5))
+        frame = digit.render(spec, f).frame
+        gate = ContactGate()
+        gate.capture_background(bgs)
+        g = gate.update(frame)
+        if g.contact and not g.mismatch and not g.invalid:
+            rgb.append(frame)
+            force.append(f)
+
+
+def _depth_factory(manifest) -> Callable[[], object] | None:
+    """The bundle's own depth stage when its manifest records one; None: the virtual DIGIT's
+    calibration (:func:`benchmarks.frames.depth_stage`), which the frames come from."""
+    if not manifest.needs_depth or manifest.depth is None:
+        return None
+    from tactile_force.edge.runtime import build_depth_stage
+
+    return lambda: build_depth_stage(None, manifest)
+
+
+def replay_error(bundle: Path, data: Path, background: Path | None, threads: int = 1) -> BenchError | None:
+    """Error of ``bundle`` on the labelled folder ``data`` (authors' layout), replayed through
+    the runtime exactly as ``tactile-force run --source DATA --bundle BUNDLE --background BG``
+    does; None when no frame got a CNN reading.
+
+    Raises a TactileForceError subclass (exit 2) when ``data`` or ``background`` is unusable,
+    or when ``data`` has no truth (not a labelled folder)."""
+    from tactile_force.edge.cli_runtime import readings_error
+    from tactile_force.edge.errors import DatasetError
+    from tactile_force.edge.scene import build_scene, check_scene, scene_from_flags
+
+    scene = scene_from_flags(str(data), bundle=str(bundle), background=str(background) if background else None)
+    scene.threads = threads
+    scene = check_scene(scene)
+    built = build_scene(scene, warn=lambda m: None)
+    readings: list = []
+    try:
+        built.runtime.run([], on_reading=lambda r: readings.append(r) if r.truth_n is not None else None)
+    finally:
+        built.close()
+    rep, n_truth, missed = readings_error(readings)
+    if not n_truth:
+        raise DatasetError(f"--data {data}: no frame with a true force (expected the authors' layout: "
+                           "images/N.png + forces/force_N.txt, e.g. from 'tactile-force record' or 'synth')")
+    if rep is None:
+        return None
+    o = rep.overall
+    return BenchError(o.n, _f(o.re_mean), _f(o.re_std), o.mae_mean, o.mae_std,
+                      {k: BinError(s.n, _f(s.re_mean), _f(s.re_std), s.mae_mean, s.mae_std)
+                       for k, s in rep.per_bin.items()},
+                      str(data), str(background) if background else None, n_truth, missed)
+
+
+def _machine_state(s) -> MachineState:
+    return MachineState(_f(s.load_before), _f(s.load_after), _f(s.mhz_before), _f(s.mhz_after),
+                        _f(s.others_share), float(s.seconds), bool(s.busy))
+
+
+def bench_bundle(path: Path, pool, frames: int = 1000, threads: int = 1, budget_ms: float = 1.0,
+                 repeats: int = 3, pause_s: float = 30.0, warmup: int = 30, window=None,
+                 sleep: Callable[[float], None] | None = None) -> BundleResult:
+    """Latency of one bundle through ``ForceRuntime`` on this host and its verdict.
+
+    Parameters
+    ----------
+    path : Path
+        The bundle folder.
+    pool : benchmarks.frames.FramePool
+        Frames in contact, read from memory (:func:`contact_frames`).
+    frames, warmup : int
+        Readings measured, after ``warmup`` readings not counted.
+    threads : int
+        ONNX Runtime intra-op threads (and OpenCV's).
+    budget_ms : float
+        The budget for the end-to-end total p99 (ms).
+    repeats, pause_s : int, float
+        Attempts at most, and the pause before a new one (only after an attempt over budget
+        on a busy machine; :func:`benchmarks.check.judge`).
+
+    Returns
+    -------
+    BundleResult
+        ``error`` is None (see :func:`replay_error`).
+    """
+    import time
+
+    from tactile_force.edge.bundle import load_bundle
+
+    from .bundles import ModelConfig
+    from .check import JUDGED, judge
+    from .latency import LatencyCase, measure
+
+    bundle = load_bundle(path)
+    m = bundle.manifest
+    scale = m.architecture.input_scale or 1.0
+    cfg = ModelConfig(str(m.variant), float(m.architecture.width or 1.0), max(1, round(1.0 / scale)))
+    case = LatencyCase(cfg, str(m.precision), threads=threads, frames=frames, warmup=warmup, bundle=Path(path))
+    depth = _depth_factory(m)
+
+    def once():
+        r = measure(case, pool, bare=False, depth=depth)
+        return r, r.stages[JUDGED].p99
+
+    result, verdict, attempts = judge(once, budget_ms, repeats, pause_s, window, sleep or time.sleep)
+    s = result.stages
+    stages = {k: _timing(s[k]) for k in STAGES if k in s and (k != "depth" or case.needs_depth)}
+    score = m.error_score()
+    return BundleResult(
+        path=str(path), name=m.name, variant=str(m.variant), precision=str(m.precision), total_ms=_timing(s[JUDGED]),
+        stages_ms=stages, error=None, manifest_re=_f(score), verdict=verdict.name,
+        attempts=[Attempt(_f(a.p99_ms), _machine_state(a.machine)) for a in attempts], note=result.note)
+
+
+def run_bench(bundles: Sequence[Path], frames: int = 1000, threads: int = 1, budget_ms: float = 1.0,
+              data: Path | None = None, background: Path | None = None, repeats: int = 3, pause_s: float = 30.0,
+              show_progress: bool = True, command: str = "", pool=None, window=None,
+              sleep: Callable[[float], None] | None = None) -> BenchReport:
+    """Measure every bundle (latency and verdict; error too with ``data``) into a :class:`BenchReport`.
+
+    Parameters
+    ----------
+    bundles : sequence of Path
+        Bundle folders (e.g. :func:`shipped_bundles`).
+    frames, threads, budget_ms, repeats, pause_s
+        As in :func:`bench_bundle`.
+    data, background : Path, optional
+        A labelled folder in the authors' layout and its no-contact image: adds the error.
+    show_progress : bool
+        Draw a progress bar over the bundles (on a terminal).
+    command : str
+        The command line, recorded in the report.
+    pool : FramePool, optional
+        Frames in contact (default :func:`contact_frames`).
+    """
+    import cv2
+    from tactile_force.edge.progress import progress
+
+    from .machine import describe_machine
+
+    mach = describe_machine()
+    pool = pool if pool is not None else contact_frames()
+    results = []
+    prev = cv2.getNumThreads()
+    try:
+        for path in progress(list(bundles), desc="bench", enabled=show_progress):
+            r = bench_bundle(Path(path), pool, frames, threads, budget_ms, repeats, pause_s, window=window,
+                             sleep=sleep)
+            if data is not None:
+                r.error = replay_error(Path(path), Path(data), Path(background) if background else None, threads)
+            results.append(r)
+    finally:
+        cv2.setNumThreads(prev)
+    machine = Machine(mach.cpu, mach.cores, _f(mach.ram_gib), mach.os, mach.python, mach.versions,
+                      mach.background_load)
+    return BenchReport(SCHEMA, machine, float(budget_ms), int(threads), int(frames),
+                       overall_verdict([r.verdict for r in results]), results, command)
+
+
+# ----------------------------------------------------------------------------- output
+VERDICT_TEXT = {"PASS": "PASS", "OVER_BUDGET": "over budget", "MACHINE_BUSY": "machine busy (no verdict)"}
+
+
+def _ms(v: float | None) -> str:
+    return "-" if v is None else f"{v:.3f}"
+
+
+def table_rows(report: BenchReport) -> tuple[list[str], list[list[str]]]:
+    """Header and rows of the results table (one row per bundle)."""
+    head = ["bundle", "variant", "precision", "gate p50", "depth p50", "inference p50", "total p50", "total p99",
+            "RE (here)", "MAE N (here)", "RE (manifest)", "verdict"]
+    rows = []
+    for b in report.bundles:
+        st = b.stages_ms
+        e = b.error
+        rows.append([b.name, b.variant, b.precision, _ms(st["gate"].p50 if "gate" in st else None),
+                     _ms(st["depth"].p50 if "depth" in st else None),
+                     _ms(st["inference"].p50 if "inference" in st else None), _ms(b.total_ms.p50),
+                     _ms(b.total_ms.p99), "-" if e is None or e.re_mean is None else f"{e.re_mean:.3f}",
+                     "-" if e is None else f"{e.mae_mean:.3f}",
+                     "-" if b.manifest_re is None else f"{b.manifest_re:.3f}", VERDICT_TEXT.get(b.verdict, b.verdict)])
+    return head, rows
+
+
+def text_table(report: BenchReport) -> str:
+    """The results as aligned plain text (what the CLI prints), machine state per bundle after it."""
+    head, rows = table_rows(report)
+    widths = [max(len(h), *(len(r[i]) for r in rows)) if rows else len(h) for i, h in enumerate(head)]
+    out = ["  ".join(h.ljust(w) for h, w in zip(head, widths))]
+    out += ["  ".join(c.ljust(w) for c, w in zip(r, widths)) for r in rows]
+    out.append(f"latency in ms through ForceRuntime, {report.frames} frames in contact, {report.threads} thread(s); "
+               f"budget: total p99 <= {report.budget_ms:g} ms")
+    for b in report.bundles:
+        for i, a in enumerate(b.attempts, 1):
+            out.append(f"{b.name} attempt {i}: total p99 {_ms(a.total_p99_ms)} ms; {_state_line(a.machine)}")
+    out.append(f"verdict: {VERDICT_TEXT.get(report.verdict, report.verdict)}")
+    return "\n".join(out)
+
+
+def _state_line(s: MachineState) -> str:
+    def g(v: float | None, fmt: str) -> str:
+        return "?" if v is None else format(v, fmt)
+
+    share = "unknown" if s.others_share is None else f"{100 * s.others_share:.0f} %"
+    return (f"load {g(s.load_before, '.2f')} -> {g(s.load_after, '.2f')}, CPU {g(s.mhz_before, '.0f')} -> "
+            f"{g(s.mhz_after, '.0f')} MHz, other processes used {share} of the cores over {s.seconds:.0f} s -> "
+            f"{'BUSY' if s.busy else 'quiet'}")
+
+
+def markdown(report: BenchReport) -> str:
+    """report.md: machine, command, the table, per-bin error, machine state per attempt."""
+    head, rows = table_rows(report)
+    m = report.machine
+    lines = ["# tactile-force bench", "", f"Command: `{report.command}`" if report.command else "",
+             f"Machine: {m.cpu}, {m.cores} logical cores, "
+             f"{'?' if m.ram_gib is None else f'{m.ram_gib:.0f}'} GiB RAM, {m.os}, Python {m.python}; {m.versions}.",
+             f"At start: {m.background_load}.", "",
+             f"Latency in ms through `ForceRuntime` (in-memory source, frames in contact, {report.threads} thread(s), "
+             f"{report.frames} frames); total = frame arrival -> reading. "
+             f"Budget: total p99 <= {report.budget_ms:g} ms. "
+             f"Verdict: **{VERDICT_TEXT.get(report.verdict, report.verdict)}**.", "",
+             "| " + " | ".join(head) + " |", "|" + "|".join("---" for _ in head) + "|"]
+    lines += ["| " + " | ".join(r) + " |" for r in rows]
+    for b in report.bundles:
+        lines += ["", f"## {b.name}", "", f"Path: `{b.path}`." + (f" Note: {b.note}." if b.note else "")]
+        for i, a in enumerate(b.attempts, 1):
+            lines.append(f"- attempt {i}: total p99 {_ms(a.total_p99_ms)} ms; {_state_line(a.machine)}")
+        if b.error is not None:
+            e = b.error
+            lines += ["", f"Error on `{e.data}` (background `{e.background}`): {e.n} CNN readings of "
+                      f"{e.frames_with_truth} frames with truth; {e.missed} with truth >= 1 N got no force.", "",
+                      "| force bin (N) | n | RE | MAE (N) |", "|---|---|---|---|"]
+            lines += [f"| {k} | {s.n} | {'-' if s.re_mean is None else f'{s.re_mean:.3f}'} | {s.mae_mean:.3f} |"
+                      for k, s in e.per_bin.items()]
+    return "\n".join(lines).replace("\n\n\n", "\n\n") + "\n"
+
+
+def plot(report: BenchReport, path: Path) -> Path:
+    """Error against p99 latency, one point per bundle, the budget line (OpenCV)."""
+    from tactile_force.edge.plots import ParetoPoint, error_vs_latency
+
+    pts = []
+    for b in report.bundles:
+        measured = b.error is not None and b.error.re_mean is not None
+        err = b.error.re_mean if measured and b.error is not None else b.manifest_re
+        pts.append(ParetoPoint(f"{b.variant} {b.precision}", b.total_ms.p99 if b.total_ms.p99 is not None
+                               else math.nan, err, measured))
+    return error_vs_latency(pts, report.budget_ms, path, title=f"{report.machine.cpu}, {report.threads} thread(s)")
+
+
+def write_report(report: BenchReport, out: Path) -> list[Path]:
+    """Write report.json, report.md and pareto.png into ``out`` (made if missing)."""
+    out.mkdir(parents=True, exist_ok=True)
+    js = out / REPORT_JSON
+    tmp = js.with_suffix(".json.tmp")
+    tmp.write_text(json.dumps(report.to_json(), indent=2) + "\n")
+    os.replace(tmp, js)
+    md = out / REPORT_MD
+    md.write_text(markdown(report))
+    return [js, md, plot(report, out / PLOT_PNG)]
+
+
+def read_report(path: str | os.PathLike) -> BenchReport:
+    """Read a report.json back into a :class:`BenchReport`."""
+    return BenchReport.from_json(json.loads(Path(path).read_text()))
+
+
+__all__ = ["Attempt", "BenchError", "BenchReport", "BinError", "BundleResult", "Machine", "MachineState", "Timing",
+           "bench_bundle", "contact_frames", "markdown", "overall_verdict", "read_report", "replay_error",
+           "run_bench", "shipped_bundles", "text_table", "write_report"]

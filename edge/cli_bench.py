@@ -1,0 +1,91 @@
+"""CLI: ``tactile-force bench`` - does each bundle meet its latency budget on this host, at what error?
+
+Core install only (no torch): the work is :mod:`tactile_force.benchmarks.bench`. Exit codes
+follow :mod:`tactile_force.edge.cli`: 0 every bundle within budget, 1 any over budget or no
+verdict (machine busy), 2 bad input (a missing bundle, an unusable --data / --background).
+"""
+
+from __future__ import annotations
+
+import argparse
+import shlex
+import sys
+from pathlib import Path
+
+from .cli_args import non_negative_int, positive_float, positive_int
+from .errors import TactileForceError
+
+
+class BenchInputError(TactileForceError):
+    """A ``tactile-force bench`` argument is unusable (exit 2); the message names it."""
+
+
+def configure(p: argparse.ArgumentParser) -> None:
+    p.formatter_class = argparse.RawDescriptionHelpFormatter
+    p.description = (
+        "Measure bundles through the runtime on THIS host and judge the latency budget (end-to-end total p99):\n"
+        "  tactile-force bench                                  # every shipped bundle\n"
+        "  tactile-force bench --bundle my_int8 my_fp32         # your bundles\n"
+        "  tactile-force bench --bundle B --data LABELLED_DIR --background NO_CONTACT.png   # + error (RE, MAE)\n"
+        "Writes report.json (docs/bench.md), report.md and pareto.png (error vs p99) to --out.\n"
+        "Exit 0 every bundle within budget, 1 any over budget or machine busy (no verdict), 2 bad input.")
+    p.add_argument("--bundle", nargs="+", metavar="B", help="bundle folder(s) to measure (default: every shipped "
+                                                            "bundle)")
+    p.add_argument("--data", type=Path, help="labelled folder in the authors' layout (images/N.png + "
+                                             "forces/force_N.txt, e.g. from record or synth): adds error vs truth")
+    p.add_argument("--background", type=Path, help="with --data: the sensor's no-contact image (else learnt from "
+                                                   "the first frames, as 'run' does)")
+    p.add_argument("--threads", type=positive_int, default=1, help="ONNX Runtime / OpenCV threads (default 1)")
+    p.add_argument("--budget-ms", type=positive_float, default=1.0,
+                   help="budget for the end-to-end total p99 in ms (default 1.0)")
+    p.add_argument("--frames", type=positive_int, default=1000, help="readings measured per bundle (default 1000)")
+    p.add_argument("--repeats", type=positive_int, default=3,
+                   help="attempts at most; a new one only after one over budget on a busy machine (default 3)")
+    p.add_argument("--pause-s", type=non_negative_int, default=30, help="seconds before a repeat (default 30)")
+    p.add_argument("--out", type=Path, default=Path("tactile_force_bench"),
+                   help="output folder (default tactile_force_bench)")
+
+
+def _check_args(args: argparse.Namespace) -> list[Path]:
+    bundles = [Path(b) for b in args.bundle] if args.bundle else None
+    if bundles is None:
+        from tactile_force.benchmarks.bench import shipped_bundles
+
+        bundles = shipped_bundles()
+        if not bundles:
+            raise BenchInputError("no shipped bundle found in this install; give --bundle B")
+    for b in bundles:
+        if not (b / "model.json").is_file():
+            raise BenchInputError(f"--bundle {b}: not a bundle folder (expected model.json in it)")
+    if args.background is not None and args.data is None:
+        raise BenchInputError("--background: only with --data (the labelled frames it belongs to)")
+    if args.data is not None and not args.data.is_dir():
+        raise BenchInputError(f"--data {args.data}: folder not found (expected the authors' layout: images/N.png + "
+                              "forces/force_N.txt)")
+    if args.background is not None and not args.background.exists():
+        raise BenchInputError(f"--background {args.background}: not found (expected a no-contact image)")
+    if args.out.exists() and not args.out.is_dir():
+        raise BenchInputError(f"--out {args.out}: is a file; expected an output folder")
+    return bundles
+
+
+def main(args: argparse.Namespace) -> int:
+    import logging
+
+    from tactile_force.benchmarks.bench import run_bench, text_table, write_report
+
+    bundles = _check_args(args)
+    # The bench frames are virtual DIGIT frames: a bundle made for another sensor would only
+    # warn about its data statistics on every row; the figures are latency, not accuracy.
+    logging.getLogger("tactile_force.edge.data_stats").setLevel(logging.ERROR)
+    command = "tactile-force bench " + " ".join(shlex.quote(a) for a in sys.argv[2:]) \
+        if len(sys.argv) > 1 and sys.argv[1] == "bench" else "tactile-force bench"
+    print(f"bench: {len(bundles)} bundle(s), {args.frames} frames each, {args.threads} thread(s), "
+          f"budget {args.budget_ms:g} ms" + (f", error on {args.data}" if args.data else ""), file=sys.stderr)
+    report = run_bench(bundles, frames=args.frames, threads=args.threads, budget_ms=args.budget_ms, data=args.data,
+                       background=args.background, repeats=args.repeats, pause_s=float(args.pause_s),
+                       command=command.strip())
+    paths = write_report(report, args.out)
+    print(text_table(report))
+    print("wrote " + ", ".join(str(p) for p in paths))
+    return 0 if report.passed else 1
