@@ -61,7 +61,6 @@ def pareto_plot(rows: list[dict], path: Path, title: str) -> Path:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
     from matplotlib.ticker import FixedLocator, NullFormatter, ScalarFormatter
 
     fig, ax = plt.subplots(figsize=(7.5, 4.8), dpi=120)
@@ -108,8 +107,10 @@ def run(args, argv) -> None:
     table = [[r["label"], r["precision"], r["gmacs"], _cell(r["synthetic"].overall), _mae(r["synthetic"].overall),
               _cell(r["real"].overall if r["real"] else None), _mae(r["real"].overall if r["real"] else None),
               r["p50"], r["p99"]] for r in rows]
-    bins = sorted({b for r in rows for b in r["synthetic"].per_bin}, key=lambda b: float(b.split("-")[0]) if b[0].isdigit() else 99)
-    bin_rows = [[r["config"], r["precision"]] + [_cell(r["synthetic"].per_bin.get(b)) for b in bins] for r in rows]
+    bins = sorted({b for r in rows for b in r["synthetic"].per_bin},
+                  key=lambda b: float(b.split("-")[0]) if b[0].isdigit() else 99)
+    bin_rows = [[r["config"], r["precision"]] + [_cell(r["synthetic"].per_bin.get(b)) for b in bins]
+                for r in rows]
     m = describe_machine()
     text = header("Error against run time", command_line(argv), m, NOTE) + "\n".join([
         "## Trained reference bundles", "",

@@ -36,7 +36,8 @@ class FramePool:
             inputs["rgb"] = self.rgb[:k]
         if variant != "rgbmod":
             inputs["depth"] = self.depth[:k]
-        return CalibrationData(inputs, self.force[:k].astype(np.float64), f"{k} virtual DIGIT frames in contact (seed 0)",
+        return CalibrationData(inputs, self.force[:k].astype(np.float64),
+                               f"{k} virtual DIGIT frames in contact (seed 0)",
                                [str(i) for i in range(k)])
 
 

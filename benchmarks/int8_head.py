@@ -113,11 +113,13 @@ def main(argv: list[str] | None = None) -> int:
             models.append((f"{trained.parent.name} (trained)", float(w), int(s.split("-")[0]), trained))
     rows = study(models)
     note = ("RGBmod graphs: full resolution with random weights (seed 0), and the models benchmarks.distill_study "
-            "trained (if present in benchmarks/cache/distill); int8-static minmax per-channel, calibrated on 64 virtual DIGIT "
+            "trained (if present in benchmarks/cache/distill); int8-static minmax per-channel, calibrated on 64 "
+            "virtual DIGIT "
             "frames; errors against the same graph in fp32 on 53 real DIGIT frames (11 AUROVA + 42 FOTS ball "
             "presses); latency of a batch-2 predict, one thread, on a shared machine (other jobs were running).")
     text = header("int8: keeping the head's input in float", "python -m benchmarks.int8_head", describe_machine(), note)
-    text += markdown_table(["model", "pooled features + concat", "max abs(int8 - fp32) (N)", "mean abs(int8 - fp32) (N)",
+    text += markdown_table(["model", "pooled features + concat", "max abs(int8 - fp32) (N)",
+                            "mean abs(int8 - fp32) (N)",
                             "mean abs(fp32 output) (N)", "p50 ms", "p99 ms"], rows, 4) + "\n"
     OUT.write_text(text)
     print(f"wrote {OUT}")

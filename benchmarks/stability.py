@@ -16,7 +16,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-
 from tactile_force.edge import FrameSource, TimedFrame
 
 from .bundles import PRECISIONS, ModelConfig, latency_bundle, trained_models
@@ -87,7 +86,7 @@ def build_cases(quick: bool = False) -> list[Case]:
     noisy = [np.clip(b.frame + rng.normal(0, 12, b.frame.shape), 0, 255).astype(np.uint8) for b in base]
     cases.append(Case("noisy frames (sigma 12 levels)", noisy, [b.force_n for b in base]))
     drift = []
-    for i, g in enumerate(np.linspace(0.9, 1.1, 8)):
+    for g in np.linspace(0.9, 1.1, 8):
         drift.append(digit.render(ContactSpec("triangle_large", (160, 120)), 6.0, led_gain=(g, 2 - g, g)).frame)
     cases.append(Case("drifting LEDs (gain 0.9-1.1 per channel)", drift, [6.0] * len(drift)))
     bad = [np.full((320, 240, 3), np.nan, np.float32), np.full((320, 240, 3), np.inf, np.float32),
@@ -126,9 +125,8 @@ def run_case(model, case: Case, background: np.ndarray) -> Outcome:
     rt.run(on_reading=readings.append)
     raw = np.array([r.raw_force_n for r in readings])
     flags = [r.flags.names() for r in readings]
-    ran = np.array([Flags.NO_CONTACT not in r.flags and "model returned" not in r.detail and not
-                    (Flags.INVALID_INPUT in r.flags) and Flags.BACKGROUND_MISMATCH not in r.flags  # CNN not run
-                    for r in readings])
+    skip = Flags.NO_CONTACT | Flags.INVALID_INPUT | Flags.BACKGROUND_MISMATCH  # the CNN did not run
+    ran = np.array([not (r.flags & skip) and "model returned" not in r.detail for r in readings])
     nonfinite = sum(1 for r in readings if "model returned" in r.detail)
     nonfinite += int(np.count_nonzero(~np.isfinite(raw[ran])))
     ok = 1.0

@@ -16,7 +16,6 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-
 from tactile_force.edge.cli import main as cli_main
 from tactile_force.edge.synthetic import VirtualDigit, VirtualDigitOptions
 
