@@ -254,15 +254,13 @@ def _depth_factory(manifest) -> Callable[[], object] | None:
     return lambda: build_depth_stage(None, manifest)
 
 
-def replay_error(bundle: Path, data: Path, background: Path | None, threads: int = 1) -> BenchError | None:
-    """Error of ``bundle`` on the labelled folder ``data`` (authors' layout), replayed through
-    the runtime exactly as ``tactile-force run --source DATA --bundle BUNDLE --background BG``
-    does; None when no frame got a CNN reading.
+def replay_readings(bundle: Path, data: Path, background: Path | None, threads: int = 1) -> list:
+    """The readings with truth of ``bundle`` on the labelled folder ``data`` (authors' layout),
+    replayed through the runtime exactly as ``tactile-force run --source DATA --bundle BUNDLE
+    --background BG`` builds it (list of ForceReading, in frame order).
 
-    Raises a TactileForceError subclass (exit 2) when ``data`` or ``background`` is unusable,
-    or when ``data`` has no truth (not a labelled folder)."""
-    from tactile_force.edge.cli_runtime import readings_error
-    from tactile_force.edge.errors import DatasetError
+    Raises a TactileForceError subclass (exit 2) when ``data``, ``background`` or ``bundle``
+    is unusable."""
     from tactile_force.edge.scene import build_scene, check_scene, scene_from_flags
 
     scene = scene_from_flags(str(data), bundle=str(bundle), background=str(background) if background else None)
@@ -274,6 +272,22 @@ def replay_error(bundle: Path, data: Path, background: Path | None, threads: int
         built.runtime.run([], on_reading=lambda r: readings.append(r) if r.truth_n is not None else None)
     finally:
         built.close()
+    return readings
+
+
+def replay_error(bundle: Path, data: Path, background: Path | None, threads: int = 1,
+                 readings: list | None = None) -> BenchError | None:
+    """Error of ``bundle`` on the labelled folder ``data`` as ``tactile-force run`` reports it
+    (:func:`replay_readings`, then :func:`tactile_force.edge.cli_runtime.readings_error`);
+    None when no frame got a CNN reading. ``readings``: an earlier replay's, to reuse.
+
+    Raises a TactileForceError subclass (exit 2) when ``data`` or ``background`` is unusable,
+    or when ``data`` has no truth (not a labelled folder)."""
+    from tactile_force.edge.cli_runtime import readings_error
+    from tactile_force.edge.errors import DatasetError
+
+    if readings is None:
+        readings = replay_readings(bundle, data, background, threads)
     rep, n_truth, missed = readings_error(readings)
     if not n_truth:
         raise DatasetError(f"--data {data}: no frame with a true force (expected the authors' layout: "
@@ -502,4 +516,5 @@ def read_report(path: str | os.PathLike) -> BenchReport:
 
 __all__ = ["Attempt", "BenchError", "BenchReport", "BinError", "BundleResult", "Machine", "MachineState", "Timing",
            "bench_bundle", "contact_frames", "markdown", "overall_verdict", "read_report", "replay_error",
+           "replay_readings",
            "run_bench", "shipped_bundles", "text_table", "write_report"]
