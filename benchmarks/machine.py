@@ -56,7 +56,7 @@ def _versions() -> str:
     import onnxruntime as ort
 
     parts = [f"onnxruntime {ort.__version__}", f"OpenCV {cv2.__version__}", f"numpy {np.__version__}"]
-    if "torch" in sys.modules:
+    if sys.modules.get("torch") is not None:
         parts.append(f"torch {sys.modules['torch'].__version__}")
     else:
         try:

@@ -1,0 +1,189 @@
+"""``tactile-force bench``: the report.json contract, exit codes, no torch, and the same RE as ``run``.
+
+Real ONNX Runtime, OpenCV and the shipped default bundle; no timing assertions (the verdict
+of a real run depends on the machine, so tests accept 0 or 1 where a real budget is judged).
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from tactile_force.benchmarks.bench import (
+    REPORT_JSON,
+    BenchReport,
+    contact_frames,
+    overall_verdict,
+    read_report,
+    shipped_bundles,
+)
+from tactile_force.benchmarks.check import Verdict, judge
+from tactile_force.benchmarks.machine import MachineState
+from tactile_force.edge.cli import main
+from tactile_force.edge.scene import default_bundle_path
+
+FAST = ["--frames", "20", "--repeats", "1"]
+
+
+@pytest.fixture(scope="module")
+def synth_dir(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("bench_synth") / "data"
+    assert main(["synth", "--out", str(out), "--n", "24", "--seed", "3", "--no-progress"]) == 0
+    return out
+
+
+def test_shipped_bundles_start_with_the_default():
+    found = shipped_bundles()
+    assert found and found[0] == default_bundle_path()
+    assert all((p / "model.json").is_file() for p in found)
+
+
+def test_report_json_is_the_documented_contract(tmp_path, capsys):
+    out = tmp_path / "bench"
+    rc = main(["bench", *FAST, "--out", str(out)])
+    assert rc in (0, 1)  # PASS, or over budget / busy on a loaded test machine
+    raw = json.loads((out / REPORT_JSON).read_text())
+    assert {"schema", "machine", "budget_ms", "verdict", "bundles"} <= raw.keys()
+    assert raw["budget_ms"] == 1.0 and raw["verdict"] in ("PASS", "OVER_BUDGET", "MACHINE_BUSY")
+    assert {"cpu", "cores"} <= raw["machine"].keys()
+    b = raw["bundles"][0]
+    assert {"path", "variant", "precision", "total_ms", "stages_ms", "error", "verdict"} <= b.keys()
+    assert {"p50", "p99"} <= b["total_ms"].keys() and b["total_ms"]["p99"] >= b["total_ms"]["p50"] > 0
+    assert {"gate", "inference", "total"} <= b["stages_ms"].keys() and "depth" not in b["stages_ms"]
+    assert b["error"] is None and b["variant"] == "rgbmod" and b["precision"] == "int8-static"
+    assert Path(b["path"]) == default_bundle_path()
+    report = read_report(out / REPORT_JSON)  # parses into the typed dataclasses
+    assert isinstance(report, BenchReport) and report.bundles[0].total_ms.n == 20
+    assert (rc == 0) == report.passed
+    assert (out / "report.md").read_text().startswith("# tactile-force bench")
+    import cv2
+
+    assert cv2.imread(str(out / "pareto.png")) is not None
+    printed = capsys.readouterr().out
+    assert "verdict:" in printed and report.bundles[0].name in printed
+
+
+def test_a_wrong_report_is_refused_naming_the_field(tmp_path):
+    from tactile_force.edge.typed_json import TypedJsonError
+
+    good = {"schema": "tactile-force-bench/1", "budget_ms": 1.0, "threads": 1, "frames": 1, "verdict": "PASS",
+            "machine": {"cpu": "x", "cores": 1, "ram_gib": None, "os": "", "python": "", "versions": "",
+                        "background_load": ""}, "bundles": []}
+    BenchReport.from_json(good)
+    with pytest.raises(TypedJsonError, match="budget_ms"):
+        BenchReport.from_json({**good, "budget_ms": "fast"})
+
+
+def test_a_tiny_budget_exits_1_over_budget_or_busy(tmp_path):
+    out = tmp_path / "b"
+    assert main(["bench", *FAST, "--budget-ms", "0.001", "--out", str(out)]) == 1
+    r = read_report(out / REPORT_JSON)
+    assert r.verdict in ("OVER_BUDGET", "MACHINE_BUSY") and not r.passed
+    assert r.bundles[0].verdict == r.verdict and len(r.bundles[0].attempts) == 1
+
+
+@pytest.mark.parametrize("argv", [
+    ["--bundle", "no/such/bundle"],
+    ["--background", "x.png"],
+    ["--data", "no/such/folder"],
+    ["--frames", "0"],
+    ["--budget-ms", "-1"],
+])
+def test_bad_input_exits_2_with_one_line(tmp_path, capsys, argv):
+    assert main(["bench", *argv, "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and not (tmp_path / "o" / REPORT_JSON).exists()
+
+
+def test_unlabelled_data_is_bad_input(tmp_path, capsys):
+    import cv2
+
+    (tmp_path / "pngs").mkdir()
+    cv2.imwrite(str(tmp_path / "pngs" / "0.png"), np.full((320, 240, 3), 90, np.uint8))
+    assert main(["bench", *FAST, "--data", str(tmp_path / "pngs"), "--out", str(tmp_path / "o")]) == 2
+
+
+def test_bench_data_gives_the_same_error_as_run(tmp_path, capsys, synth_dir):
+    bundle = str(default_bundle_path())
+    assert main(["run", "--source", str(synth_dir), "--bundle", bundle, "--out", str(tmp_path / "r.csv")]) == 0
+    err = capsys.readouterr().err
+    m = re.search(r"error vs truth over (\d+) CNN readings: RE ([\d.]+) \+- [\d.]+, MAE ([\d.]+)", err)
+    assert m, err
+    out = tmp_path / "bench"
+    assert main(["bench", *FAST, "--bundle", bundle, "--data", str(synth_dir), "--out", str(out)]) in (0, 1)
+    e = read_report(out / REPORT_JSON).bundles[0].error
+    assert e is not None and e.re_mean is not None
+    assert e.n == int(m.group(1)) and f"{e.re_mean:.3f}" == m.group(2) and f"{e.mae_mean:.3f}" == m.group(3)
+    assert sum(b.n for b in e.per_bin.values()) == e.n and e.frames_with_truth == 24
+    assert "| force bin (N) |" in (out / "report.md").read_text()
+
+
+def test_bench_needs_no_torch_onnx_or_matplotlib(tmp_path):
+    code = ("import sys, json\n"
+            "for m in ('torch', 'onnx', 'matplotlib'): sys.modules[m] = None  # importing one would fail\n"
+            "import tactile_force.benchmarks.bench, tactile_force.benchmarks.check, tactile_force.benchmarks.latency\n"
+            "import tactile_force.benchmarks.machine, tactile_force.edge.cli_bench, tactile_force.edge.plots\n"
+            "from tactile_force.edge.cli import main\n"
+            f"rc = main(['bench', '--frames', '10', '--repeats', '1', '--out', {str(tmp_path / 'o')!r}])\n"
+            "print(json.dumps([rc, sorted(m for m in sys.modules if m.split('.')[0] in "
+            "('torch', 'onnx', 'matplotlib') and sys.modules[m] is not None)]))\n")
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    rc, heavy = json.loads(run.stdout.strip().splitlines()[-1])
+    assert rc in (0, 1) and heavy == []
+    assert (tmp_path / "o" / REPORT_JSON).is_file()
+
+
+def test_contact_frames_open_the_gate_on_every_frame():
+    pool = contact_frames(8, seed=1)
+    assert pool.rgb.shape == (8, 320, 240, 3) and pool.background.shape[1:] == (320, 240, 3)
+    assert all(_fresh(pool).update(f).contact for f in pool.rgb)
+    assert np.all((pool.force >= 1.5) & (pool.force <= 14.5))
+
+
+def _fresh(pool):
+    from tactile_force.edge.gate import ContactGate
+
+    g = ContactGate()
+    g.capture_background(pool.background)
+    return g
+
+
+class _Window:
+    """A fake machine watcher (hardware boundary): each stop() reports the next busy flag."""
+
+    def __init__(self, busy: list[bool]) -> None:
+        self.busy = busy
+
+    def __call__(self):
+        outer = self
+
+        class W:
+            def stop(self) -> MachineState:
+                return MachineState(0.1, 0.1, 1000.0, 1000.0, 0.5 if outer.busy[0] else 0.0, 1.0, outer.busy.pop(0))
+        return W()
+
+
+@pytest.mark.parametrize("p99s, busy, verdict, n", [
+    ([0.5], [False], Verdict.PASS, 1),
+    ([2.0], [False], Verdict.OVER_BUDGET, 1),
+    ([2.0, 3.0, 2.5], [True, True, True], Verdict.MACHINE_BUSY, 3),
+    ([2.0, 0.8], [True, True], Verdict.PASS, 2),
+])
+def test_judge_repeats_only_after_a_busy_attempt_over_budget(p99s, busy, verdict, n):
+    left = list(p99s)
+    kept, v, attempts = judge(lambda: (left[0], left.pop(0)), 1.0, repeats=3, pause_s=0.0, window=_Window(busy),
+                              sleep=lambda s: None)
+    assert v is verdict and len(attempts) == n and kept == min(p99s[:n])
+
+
+def test_overall_verdict():
+    assert overall_verdict(["PASS", "PASS"]) == "PASS"
+    assert overall_verdict(["PASS", "MACHINE_BUSY", "OVER_BUDGET"]) == "OVER_BUDGET"
+    assert overall_verdict(["PASS", "MACHINE_BUSY"]) == "MACHINE_BUSY"
+    assert overall_verdict([]) == "MACHINE_BUSY"
