@@ -6,6 +6,7 @@
     python -m benchmarks all --quick                  # smoke run (never into the docs)
     python -m benchmarks robustness --out docs        # bad inputs and faults, counted -> docs/robustness.md
     python -m benchmarks trust --out docs/benchmarks  # frames that cannot be judged, counted -> trust.md
+    python -m benchmarks intervals --out docs/benchmarks  # every reading's error bar, measured -> intervals.md
 
 Results go to ``--out DIR`` (default out/benchmarks, git-ignored); docs/benchmarks only
 when it is named. Every page states the machine, its load while measuring, and the command.
@@ -82,9 +83,9 @@ def main(argv: list[str] | None = None) -> int:
     logging.getLogger("tactile_force.edge.data_stats").setLevel(logging.ERROR)
     ap = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__)
-    ap.add_argument("what", nargs="?", choices=(*TASKS, "robustness", "trust"),
-                    help="which benchmark to run (default: none with --check); 'robustness' and 'trust' are not "
-                         "part of 'all'")
+    ap.add_argument("what", nargs="?", choices=(*TASKS, "robustness", "trust", "intervals"),
+                    help="which benchmark to run (default: none with --check); 'robustness', 'trust' and "
+                         "'intervals' are not part of 'all'")
     ap.add_argument("--write-default-stats", action="store_true",
                     help="trust: also store the default bundle's data_stats in edge/models/default/model.json")
     ap.add_argument("--examples", type=int, default=100,
@@ -117,6 +118,11 @@ def main(argv: list[str] | None = None) -> int:
         from .trust import run as run_trust
 
         return run_trust(args, argv)
+    if args.what == "intervals":
+        from .interval_page import intervals_page
+
+        _write("intervals.md", intervals_page(args, argv), args.out)
+        return 0
     todo = TASKS[:-1] if args.what == "all" else ([args.what] if args.what else [])
     rc = 0
     if args.check:  # first, in a fresh process: torch / OpenVINO thread pools of later rows cannot disturb it

@@ -38,6 +38,7 @@ import numpy as np
 
 from .errors import TactileForceError
 from .force_calibration import CalibrationFigures, ForceCalibration
+from .interval import DEFAULT_COVERAGE, IntervalError, fit_interval
 
 METHODS = ("isotonic", "linear")
 #: The calibrated map is extended linearly up to this force (N); the runtime saturates at 15 N.
@@ -282,11 +283,14 @@ def raw_estimates(model, frames: LabelledFrames) -> np.ndarray:
 
 
 def calibrate_bundle(bundle_path: str | os.PathLike, data: str | os.PathLike, out: str | os.PathLike,
-                     method: str = "isotonic", limits: CalibrationLimits | None = None, overwrite: bool = False):
+                     method: str = "isotonic", limits: CalibrationLimits | None = None, overwrite: bool = False,
+                     coverage: float = DEFAULT_COVERAGE):
     """Fit a calibration for the bundle on the labelled frames in ``data``; write a new bundle at ``out``.
 
     Returns (written Bundle, ForceCalibration). The new bundle holds the same ONNX bytes;
-    an existing calibration in the source bundle is replaced (the fit uses raw estimates)."""
+    an existing calibration in the source bundle is replaced (the fit uses raw estimates),
+    and so is its ``interval``: refitted with ``coverage`` on the leave-one-out predictions
+    (:func:`tactile_force.edge.interval.fit_interval`)."""
     from .bundle import load_bundle, write_bundle
     from .inference import OnnxForceModel
     from .manifest import ErrorFigures, ErrorReport, SourceRef
@@ -313,7 +317,13 @@ def calibrate_bundle(bundle_path: str | os.PathLike, data: str | os.PathLike, ou
     manifest.error = ErrorReport(data=f"leave-one-out on {frames.source}", frames=after.frames,
                                  vs_truth=ErrorFigures(n=after.frames, re_mean=after.re_mean, re_std=after.re_std,
                                                        mae_mean=after.mae_mean, mae_std=after.mae_std))
-    return write_bundle(dest, src.onnx_path.read_bytes(), manifest, overwrite=overwrite), cal
+    # The interval is REPLACED by one fitted on this sensor's presses: the leave-one-out
+    # predictions are what an unseen press gets, so they are the conformal calibration set
+    # (few presses: one bin; too few for the coverage: 'unknown'; edge/interval.py).
+    manifest.interval = fit_interval(leave_one_out(raw, frames.force, method), frames.force, coverage,
+                                     model_sha256=src.manifest.sha256,
+                                     data=f"leave-one-out predictions of calibrate-force on {frames.source}")
+    return write_bundle(dest, src.onnx_path.read_bytes(), manifest, overwrite=overwrite, inputs=inputs), cal
 
 
 # ----------------------------------------------------------------------------- CLI
@@ -327,13 +337,20 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--method", choices=METHODS, default="isotonic",
                         help="monotone map: isotonic (default; piecewise linear) or linear (gain + offset)")
     parser.add_argument("--force", action="store_true", help="replace --out if it exists")
+    parser.add_argument("--coverage", type=float, default=DEFAULT_COVERAGE,
+                        help="coverage of every reading's interval, fitted on the leave-one-out predictions "
+                             f"(default {DEFAULT_COVERAGE:g}; 0 < c < 1)")
 
 
 def main(args: argparse.Namespace) -> int:
     from .errors import BundleError
 
     try:
-        bundle, cal = calibrate_bundle(args.bundle, args.data, args.out, args.method, overwrite=args.force)
+        bundle, cal = calibrate_bundle(args.bundle, args.data, args.out, args.method, overwrite=args.force,
+                                       coverage=getattr(args, "coverage", DEFAULT_COVERAGE))
+    except IntervalError as exc:
+        print(f"tactile-force calibrate-force: error: --coverage: {exc}", file=sys.stderr)
+        return 2
     except CalibrationRefused as exc:
         print(f"tactile-force calibrate-force: refused: {exc}", file=sys.stderr)
         return 2
@@ -347,5 +364,11 @@ def main(args: argparse.Namespace) -> int:
     for label, f in (("before (raw)", b), ("after       ", a)):
         print(f"leave-one-out  {label}: RE {f.re_mean:.3f} +- {f.re_std:.3f}, "
               f"MAE {f.mae_mean:.2f} +- {f.mae_std:.2f} N")
+    iv = bundle.manifest.interval
+    if iv is not None:
+        q = [b.q for b in iv.bins]
+        print(f"interval ({iv.coverage:g} coverage, split conformal on the {iv.n} leave-one-out predictions): " + (
+            f"+- {max(v for v in q if v is not None):.3f} x the estimate" if iv.known else
+            "unknown: too few presses for this coverage (readings carry no interval)"))
     print(f"wrote {bundle.path}")
     return 0

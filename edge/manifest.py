@@ -13,7 +13,12 @@ Format history
 2
     Typed sections; ``depth`` and ``error`` promoted and renamed (``vs_ground_truth``
     -> ``error.vs_truth`` / ``error.fp32_vs_truth``); ``force_calibration`` and
-    ``data_stats`` added.
+    ``data_stats`` added; later ``interval`` (optional, issue 21).
+3
+    Each input records the network input it feeds and how a full-resolution frame is
+    reduced to it (``inputs[].reduction``: method and factor; edge/reduce.py): a compact
+    graph starts at the network resolution (e.g. 80 x 60) and the runtime reduces each frame
+    once. Format-2 bundles migrate as full-resolution graphs (reduction ``none``).
 """
 
 from __future__ import annotations
@@ -29,6 +34,7 @@ from .data_stats import DataStats
 from .errors import BundleError
 from .force_calibration import ForceCalibration
 from .frames import FRAME_COLS, FRAME_ROWS
+from .interval import ForceInterval
 from .typed_json import TypedJsonError, from_json, to_json
 
 FORMAT_VERSION = 2
@@ -277,7 +283,8 @@ class Manifest:
     """The bundle manifest (``model.json``), format 2.
 
     Sections left ``None`` were not measured or do not apply (``quantization`` for fp32,
-    ``depth`` for RGBmod, ``force_calibration`` until ``tactile-force calibrate-force``).
+    ``depth`` for RGBmod, ``force_calibration`` until ``tactile-force calibrate-force``,
+    ``interval`` until a verb or ``benchmarks.interval_fit`` fits one on labelled data).
     """
 
     variant: Variant
@@ -361,6 +368,11 @@ def manifest_from_json(raw: object, source: str = "model.json") -> Manifest:
     BundleError
         Naming the field that is missing, unknown, of the wrong type or inconsistent.
     """
+    #: why ``data_stats`` is None: the bundle's out-of-distribution and contact-size checks are
+    #: off (the tool that wrote it saw no frames); "" with data_stats None: not recorded (older bundles)
+    data_stats_missing: str = ""
+    #: the error bar of every reading (edge/interval.py); None: readings' intervals are unknown
+    interval: ForceInterval | None = None
     if not isinstance(raw, dict):
         raise BundleError(f"{source}: not a tactile-force manifest (expected a JSON object, got {type(raw).__name__})")
     version = raw.get("format_version")

@@ -50,12 +50,14 @@ from .data_stats import DataStatsCheck
 from .errors import FrameError, ModelClosedError, OptionsError, SourceError
 from .frames import FRAME_SHAPE, FrameSource, TimedFrame, check_frame, exposure_problem
 from .gate import ContactGate, GateResult
+from .interval import ForceInterval, usable_interval
 from .manifest import Manifest
 from .reading import MAX_VALID_FORCE_N, MIN_VALID_FORCE_N, Flags, ForceReading, StageLatency
 
 _log = logging.getLogger(__name__)
 
 STAGES = ("source", "gate", "depth", "inference", "total")
+_NO_CONTACT, _SATURATED = int(Flags.NO_CONTACT), int(Flags.SATURATED)
 
 
 class ForceModel(Protocol):
@@ -522,13 +524,16 @@ class ForceRuntime:
     def _reading(self, s: Sensor, tf: TimedFrame | None, flags: Flags, force: float = math.nan,
                  latency: StageLatency | None = None, detail: str = "", area: int = 0,
                  raw: float = math.nan) -> ForceReading:
-        return ForceReading(
+        r = ForceReading(
             sensor=s.name,
             timestamp_ns=tf.timestamp_ns if tf is not None else self.clock(),
             frame_index=tf.index if tf is not None else -1,
             force_n=force, flags=flags, latency=latency or StageLatency(), raw_force_n=raw,
             contact_area_px=area, truth_n=tf.truth_n if tf is not None else None, detail=detail,
         )
+        if force == force:  # an estimate (0 N for no_contact): its error bar (edge/interval.py)
+            self._bound(r)
+        return r
 
     def _finish(self, r: ForceReading, start_ns: int) -> ForceReading:
         r.latency.total_ms = self._ms(start_ns, self.clock())
@@ -669,6 +674,30 @@ class ForceRuntime:
             chk = DataStatsCheck(getattr(manifest, "data_stats", None), str(getattr(bundle, "name", "bundle")))
             self._data_check = chk
         return chk
+
+    @property
+    def interval(self) -> ForceInterval | None:
+        """The bundle's interval record applied to every reading (None: every reading's
+        interval is ``unknown``: the manifest has none, or it was fitted for another model)."""
+        iv = getattr(self, "_interval", False)
+        if iv is False:
+            iv = self._interval = usable_interval(getattr(self.model, "bundle", None))
+        return iv
+
+    def _bound(self, r: ForceReading) -> None:
+        """Set the reading's force_low_n / force_high_n / interval from the bundle's table:
+        no_contact -> [0, the gate-closed bound]; saturated -> open above (+inf); an unknown
+        bin or no table -> NaN bounds, ``unknown``."""
+        iv = self.__dict__.get("_interval", False)
+        if iv is False:
+            iv = self.interval
+        if iv is None:
+            return
+        fl = int(r.flags)  # plain int tests: IntFlag operators cost ~1 us each
+        if fl & _NO_CONTACT:
+            r.force_low_n, r.force_high_n, r.interval = iv.no_contact_bounds()
+        else:
+            r.force_low_n, r.force_high_n, r.interval = iv.bounds(r.force_n, fl & _SATURATED != 0)
 
     def _judge(self, raw: float, g: GateResult, error: str) -> tuple[Flags, float, str]:
         """Flags and honestly clamped force for one estimate: range, saturation (also a

@@ -12,7 +12,7 @@ import shlex
 import sys
 from pathlib import Path
 
-from tactile_force.edge.cli_args import positive_float, positive_int
+from tactile_force.edge.cli_args import non_negative_int, positive_float, positive_int
 
 
 def configure(p: argparse.ArgumentParser) -> None:
@@ -35,7 +35,7 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument("--threads", type=positive_int, default=1, help="ONNX Runtime / OpenCV threads (default 1)")
     p.add_argument("--frames", type=positive_int, default=500, help="latency readings per configuration")
     p.add_argument("--quick", action="store_true", help="a small grid (4 configurations, 3 sensitivity nodes)")
-    p.add_argument("--max-configs", type=positive_int, help="at most this many configurations besides fp32")
+    p.add_argument("--max-configs", type=non_negative_int, help="at most this many configurations besides fp32")
     p.add_argument("--sensitivity-nodes", type=int, default=None,
                    help="rank only the first N Conv nodes (default all; --quick: 3; 0: no ranking)")
     p.add_argument("--calib-frames", type=positive_int, default=200, help="calibration frames at most (default 200)")
