@@ -10,6 +10,25 @@ MIN_VALID_FORCE_N = 1.0
 MAX_VALID_FORCE_N = 15.0
 
 
+class IntervalState(str, enum.Enum):
+    """What a reading's ``force_low_n`` / ``force_high_n`` mean (issue 21).
+
+    ``known``: a central interval holding the true force with the bundle's stated coverage
+    (``ForceInterval.coverage``, default 0.90); ``open_above``: the lower bound is known,
+    the upper bound is +inf (a ``saturated`` reading: the force may be anything above);
+    ``unknown``: both bounds NaN, because there is no estimate (force NaN) or the bundle
+    states no interval for it (none recorded, too few labelled frames for the coverage, or
+    recorded for another model). Never an invented interval.
+    """
+
+    KNOWN = "known"
+    OPEN_ABOVE = "open_above"
+    UNKNOWN = "unknown"
+
+    def __str__(self) -> str:
+        return str(self.value)
+
+
 class Flags(enum.IntFlag):
     """Quality flags of a reading; combine with ``|``."""
 
@@ -48,7 +67,11 @@ class ForceReading:
 
     force_n: normal force in N, clamped to what the model can honestly say;
     raw_force_n: the model's output before clamping (nan when the CNN did not run);
-    truth_n: ground truth when the source knows it.
+    truth_n: ground truth when the source knows it;
+    force_low_n / force_high_n: the interval (N) that holds the true force with the
+    bundle's stated coverage, ``force_low_n <= force_n <= force_high_n``, ``force_low_n >= 0``;
+    ``force_high_n`` is +inf when ``interval`` is ``open_above`` (saturated); both NaN when
+    ``interval`` is ``unknown`` (see :class:`IntervalState`, :mod:`tactile_force.edge.interval`).
     """
 
     sensor: str
@@ -61,6 +84,9 @@ class ForceReading:
     contact_area_px: int = 0
     truth_n: float | None = None
     detail: str = ""
+    force_low_n: float = float("nan")
+    force_high_n: float = float("nan")
+    interval: IntervalState = IntervalState.UNKNOWN
 
     def as_dict(self) -> dict:
         """Flat dict for CSV/JSONL writers."""
@@ -69,6 +95,9 @@ class ForceReading:
             "timestamp_ns": self.timestamp_ns,
             "frame_index": self.frame_index,
             "force_n": self.force_n,
+            "force_low_n": self.force_low_n,
+            "force_high_n": self.force_high_n,
+            "interval": self.interval.value,
             "raw_force_n": self.raw_force_n,
             "truth_n": self.truth_n,
             "flags": "|".join(self.flags.names()),
