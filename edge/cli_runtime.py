@@ -226,6 +226,9 @@ def main_run(args: argparse.Namespace) -> int:
         status.close()
         built.close()
     print("\n".join(_summary_lines(stats, rt) + truth_lines(readings)), file=sys.stderr)
+    if readings and (plot := replay_plot_path(args.out, scene)) is not None:
+        _plot(readings, plot)
+        print(f"wrote {plot} (force and truth against time)", file=sys.stderr)
     if stats.processed == 0:
         why = "; ".join(f"sensor '{s.name}': {s.source.stats.frames} frames read, {s.source.stats.corrupt} corrupt"
                         + (f", {s.error}" if s.error else "") for s in rt.sensors)
@@ -235,6 +238,17 @@ def main_run(args: argparse.Namespace) -> int:
         raise CheckFailedError("every sensor was lost during the run: "
                                + "; ".join(f"{s.name}: {s.error}" for s in rt.sensors))
     return 0
+
+
+def replay_plot_path(outs: list[str], scene) -> Path | None:
+    """Where ``run`` draws a labelled replay's force and truth against time: next to the first
+    reading output, ``<its name>_force_vs_time.png`` (None when the run writes no file)."""
+    paths = [Path(o) for o in outs] or [Path(p) for o in getattr(scene, "outputs", [])
+                                         if (p := getattr(o, "path", None))]
+    if not paths:
+        return None
+    first = paths[0]
+    return first.with_name(f"{first.stem}_{PLOT_NAME}")
 
 
 # -- demo ---------------------------------------------------------------------------------
