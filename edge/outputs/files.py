@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 from typing import TextIO
 
-from ..reading import ForceReading
+from ..reading import ForceReading, IntervalState
 
 FIELDS = list(ForceReading("", 0, 0, 0.0).as_dict())
 
@@ -25,9 +25,19 @@ def _json_value(v):
     return v
 
 
+def format_interval(r: ForceReading) -> str:
+    """The reading's interval for humans: '[4.41, 5.99] N', '[14.2, inf) N' when open above
+    (saturated), '[?]' when unknown (NaN bounds: no estimate, or none the bundle can state)."""
+    if r.interval is IntervalState.UNKNOWN or math.isnan(r.force_low_n):
+        return "[  ?  ]"
+    if r.interval is IntervalState.OPEN_ABOVE or math.isinf(r.force_high_n):
+        return f"[{r.force_low_n:.2f}, inf) N"
+    return f"[{r.force_low_n:.2f}, {r.force_high_n:.2f}] N"
+
+
 def format_reading(r: ForceReading) -> str:
-    """One human line: sensor, frame, force, truth, flags, total latency."""
-    force = "   --  " if math.isnan(r.force_n) else f"{r.force_n:6.2f} N"
+    """One human line: sensor, frame, force and its interval, truth, flags, total latency."""
+    force = "   --  " if math.isnan(r.force_n) else f"{r.force_n:6.2f} N {format_interval(r)}"
     truth = "" if r.truth_n is None else f"  truth {r.truth_n:6.2f} N"
     flags = ",".join(r.flags.names()) or "ok"
     return f"{r.sensor:>6} #{r.frame_index:<6d} {force}{truth}  [{flags}]  {r.latency.total_ms:6.2f} ms"
@@ -71,7 +81,8 @@ class CsvWriter(_FileWriter):
 
 
 class JsonlWriter(_FileWriter):
-    """One JSON object per line per reading (NaN written as null), flushed."""
+    """One JSON object per line per reading (NaN and inf written as null: ``interval`` says
+    which, 'open_above' for an infinite ``force_high_n``), flushed."""
 
     def write(self, r: ForceReading) -> None:
         self._fh.write(json.dumps({k: _json_value(v) for k, v in r.as_dict().items()}) + "\n")

@@ -177,8 +177,9 @@ def _num(v: float | None) -> str:
 
 def diagnostic_message(r: ForceReading, clock: StampClock, node: str = "tactile_force") -> DiagnosticArray:
     """DiagnosticArray with one status for a reading: level from its flags, message the flag
-    names ('ok' when none) and detail, values the flags, frame index, forces (N), contact
-    area (pixels) and per-stage latency (ms)."""
+    names ('ok' when none) and detail, values the flags, frame index, forces (N) with the
+    interval (``force_low_n``, ``force_high_n``: 'nan' when unknown, 'inf' when open above;
+    ``interval``: known / open_above / unknown), contact area (pixels) and per-stage latency (ms)."""
     names = r.flags.names()
     message = ",".join(names) or "ok"
     if r.detail:
@@ -186,6 +187,8 @@ def diagnostic_message(r: ForceReading, clock: StampClock, node: str = "tactile_
     lat = r.latency
     values = [KeyValue("flags", "|".join(names)), KeyValue("flags_int", str(int(r.flags))),
               KeyValue("frame_index", str(r.frame_index)), KeyValue("force_n", _num(r.force_n)),
+              KeyValue("force_low_n", _num(r.force_low_n)), KeyValue("force_high_n", _num(r.force_high_n)),
+              KeyValue("interval", r.interval.value),
               KeyValue("raw_force_n", _num(r.raw_force_n)), KeyValue("truth_n", _num(r.truth_n)),
               KeyValue("contact_area_px", str(r.contact_area_px)),
               KeyValue("source_ms", _num(lat.source_ms)), KeyValue("gate_ms", _num(lat.gate_ms)),
