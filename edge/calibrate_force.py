@@ -284,13 +284,15 @@ def raw_estimates(model, frames: LabelledFrames) -> np.ndarray:
 
 def calibrate_bundle(bundle_path: str | os.PathLike, data: str | os.PathLike, out: str | os.PathLike,
                      method: str = "isotonic", limits: CalibrationLimits | None = None, overwrite: bool = False,
-                     coverage: float = DEFAULT_COVERAGE):
+                     coverage: float = DEFAULT_COVERAGE, plot: str | os.PathLike | None = None):
     """Fit a calibration for the bundle on the labelled frames in ``data``; write a new bundle at ``out``.
 
     Returns (written Bundle, ForceCalibration). The new bundle holds the same ONNX bytes;
     an existing calibration in the source bundle is replaced (the fit uses raw estimates),
     and so is its ``interval``: refitted with ``coverage`` on the leave-one-out predictions
-    (:func:`tactile_force.edge.interval.fit_interval`)."""
+    (:func:`tactile_force.edge.interval.fit_interval`). ``plot``: also draw the raw and the
+    leave-one-out calibrated estimates against the true force, with the fitted map, to this PNG
+    (:func:`tactile_force.edge.plots.calibration_plot`)."""
     from .bundle import load_bundle, write_bundle
     from .inference import OnnxForceModel
     from .manifest import ErrorFigures, ErrorReport, SourceRef
@@ -323,6 +325,11 @@ def calibrate_bundle(bundle_path: str | os.PathLike, data: str | os.PathLike, ou
     manifest.interval = fit_interval(leave_one_out(raw, frames.force, method), frames.force, coverage,
                                      model_sha256=src.manifest.sha256,
                                      data=f"leave-one-out predictions of calibrate-force on {frames.source}")
+    if plot is not None:
+        from .plots import calibration_plot
+
+        calibration_plot(frames.force, raw, leave_one_out(raw, frames.force, method), np.asarray(cal.raw_n),
+                         np.asarray(cal.force_n), plot)
     return write_bundle(dest, src.onnx_path.read_bytes(), manifest, overwrite=overwrite, inputs=inputs), cal
 
 
@@ -342,12 +349,19 @@ def configure(parser: argparse.ArgumentParser) -> None:
                              f"(default {DEFAULT_COVERAGE:g}; 0 < c < 1)")
 
 
+def plot_path(out: str | os.PathLike) -> Path:
+    """Where calibrate-force draws its plot: beside the new bundle, ``<out>_calibration.png``."""
+    p = Path(out)
+    return p.with_name(f"{p.name}_calibration.png")
+
+
 def main(args: argparse.Namespace) -> int:
     from .errors import BundleError
 
     try:
+        plot = plot_path(args.out)
         bundle, cal = calibrate_bundle(args.bundle, args.data, args.out, args.method, overwrite=args.force,
-                                       coverage=getattr(args, "coverage", DEFAULT_COVERAGE))
+                                       coverage=getattr(args, "coverage", DEFAULT_COVERAGE), plot=plot)
     except IntervalError as exc:
         print(f"tactile-force calibrate-force: error: --coverage: {exc}", file=sys.stderr)
         return 2
@@ -370,5 +384,5 @@ def main(args: argparse.Namespace) -> int:
         print(f"interval ({iv.coverage:g} coverage, split conformal on the {iv.n} leave-one-out predictions): " + (
             f"+- {max(v for v in q if v is not None):.3f} x the estimate" if iv.known else
             "unknown: too few presses for this coverage (readings carry no interval)"))
-    print(f"wrote {bundle.path}")
+    print(f"wrote {bundle.path} and {plot} (raw and calibrated estimates vs true force, the fitted map)")
     return 0

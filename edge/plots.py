@@ -113,8 +113,11 @@ class Canvas:
              thickness: int = 2) -> None:
         """A polyline through the finite points (x, y)."""
         pts = [self.xy(a, b) for a, b in zip(xs, ys) if self._inside(a, b)]
-        if len(pts) > 1:
-            self.cv2.polylines(self.img, [np.array(pts, np.int32)], False, colour, thickness, self.cv2.LINE_AA)
+        if len(pts) > 1:  # drawn on a copy, kept inside the axes only
+            layer = self.img.copy()
+            self.cv2.polylines(layer, [np.array(pts, np.int32)], False, colour, thickness, self.cv2.LINE_AA)
+            box = (slice(self.top + 1, self.h - self.bottom), slice(self.left + 1, self.w - self.right))
+            self.img[box] = layer[box]
 
     def points(self, xs: Sequence[float] | np.ndarray, ys: Sequence[float] | np.ndarray, colour=RED,
                radius: int = 2, filled: bool = True) -> None:
@@ -310,5 +313,5 @@ def calibration_plot(truth_n: np.ndarray, raw_n: np.ndarray, calibrated_n: np.nd
     c.line(np.asarray(map_force_n, np.float64), np.asarray(map_raw_n, np.float64), ORANGE, 2)
     c.points(t, raw_n, GREY, 4, filled=False)
     c.points(t, calibrated_n, RED, 3)
-    c.legend("grey rings: raw   red: calibrated   orange: fitted map")
+    c.legend("grey rings: raw   red: calibrated (leave-one-out)   orange: fitted map   grey line: y = x")
     return c.save(path)
