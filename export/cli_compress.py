@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 from tactile_force.edge.errors import TactileForceError
 
@@ -28,6 +29,18 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--max-frames", type=int, default=6000, help="unlabelled frames used at most (default 6000)")
     parser.add_argument("--no-augment", action="store_true", help="no LED gain/offset, noise and shift augmentation")
     parser.add_argument("--threads", type=int, default=None, help="torch threads for training (default: all cores)")
+
+
+def students_plot(students: list[dict], budget_ms: float, out: str) -> Path:
+    """``<out>/students.png``: each student's error (RE vs the labels when given, else vs the
+    teacher) against its p99, the budget line (:func:`tactile_force.edge.plots.error_vs_latency`)."""
+    from tactile_force.edge.plots import ParetoPoint, error_vs_latency
+
+    labelled = all("vs_labels" in r for r in students)
+    key = "vs_labels" if labelled else "vs_teacher"
+    pts = [ParetoPoint(r["name"], float(r["p99_ms"]), float(r[key]["re_mean"])) for r in students]
+    return error_vs_latency(pts, budget_ms, Path(out) / "students.png",
+                            ylabel="RE vs labels" if labelled else "RE vs teacher", title="compress students")
 
 
 def main(args: argparse.Namespace) -> int:
@@ -66,6 +79,8 @@ def main(args: argparse.Namespace) -> int:
         labels = f", vs labels RE {r['vs_labels']['re_mean']:.3f}" if "vs_labels" in r else ""
         print(f"{r['name']:>18}: vs teacher RE {r['vs_teacher']['re_mean']:.3f} MAE {r['vs_teacher']['mae_mean']:.3f} N"
               f"{labels}, p99 {r['p99_ms']:.3f} ms{' (resumed)' if r.get('resumed') else ''}")
+    if result.students:
+        print(f"wrote {students_plot(result.students, args.budget_ms, args.out)} (students' error vs p99, budget line)")
     if result.bundle is None:
         print(f"tactile-force compress: no student fits the {args.budget_ms:g} ms budget on this host; students are "
               f"in {args.out}/work, summary {result.summary_path}", file=sys.stderr)
