@@ -57,7 +57,8 @@ def test_readings_frames_and_masks_read_back(tmp_path, portraits):
                                                 summary.schemas[summary.channels[c].schema_id].encoding,
                                                 summary.channels[c].message_encoding) for c in summary.channels}
         assert summary.statistics.chunk_count >= len(readings)  # one chunk closed per reading
-    assert counts == {"/tactile/force": 6, "/tactile/force/diagnostics": 6, "/tactile/left/image/compressed": 3,
+    assert counts == {"/tactile/force": 6, "/tactile/force/diagnostics": 6, "/tactile/force/interval": 6,
+                      "/tactile/left/image/compressed": 3,
                       "/tactile/right/image/compressed": 3, "/tactile/left/contact_mask/compressed": 3,
                       "/tactile/right/contact_mask/compressed": 3}
     assert schemas["/tactile/force"] == ("geometry_msgs/msg/WrenchStamped", "ros2msg", "cdr")
@@ -112,7 +113,8 @@ def test_frames_off_by_default_and_bad_input(tmp_path):
     with McapWriter(path) as w:
         w.write_frame("left", 1, np.zeros((320, 240, 3), np.uint8), np.zeros((320, 240), bool))  # not enabled
         w.write(_readings()[0])
-    assert Counter(m.topic for m in read_messages(path)) == {"/tactile/force": 1, "/tactile/force/diagnostics": 1}
+    assert Counter(m.topic for m in read_messages(path)) == {"/tactile/force": 1, "/tactile/force/diagnostics": 1,
+                                                             "/tactile/force/interval": 1}
     with McapWriter(tmp_path / "bad.mcap", frames=True, mask=True) as w:
         with pytest.raises(ValueError, match="HxWx3 uint8"):
             w.write_frame("left", 1, np.zeros((320, 240), np.uint8))
@@ -163,19 +165,15 @@ def test_killed_run_leaves_a_readable_file(tmp_path):
             proc.kill()
         proc.stdout.close()
     assert written >= 40, f"worker wrote only {written + 1} readings (exit {proc.returncode})"
-    from mcap.exceptions import McapError
-
-    with pytest.raises(McapError):  # no summary/footer: the indexed reader refuses it
-        list(read_messages(path))
-    msgs = list(read_messages(path, recover=True))
-    forces = [WrenchStamped.deserialize(m.data).wrench.force.z for m in msgs if m.topic == "/tactile/force"]
-    assert len(forces) >= written + 1  # every reading flushed before the kill, maybe one more
-    assert forces == [0.5 * i for i in range(len(forces))]
-    # the same through the mcap library's own streaming reader, stopping at the truncated tail
+    # every flush leaves a complete file (a provisional end): the plain reader, the recovering
+    # one and the mcap library's own streaming reader all read every reading flushed before the kill
+    for recover in (False, True):
+        msgs = list(read_messages(path, recover=recover))
+        forces = [WrenchStamped.deserialize(m.data).wrench.force.z for m in msgs if m.topic == "/tactile/force"]
+        assert len(forces) >= written + 1  # every reading flushed before the kill, maybe one more
+        assert forces == [0.5 * i for i in range(len(forces))]
     from mcap.stream_reader import StreamReader
 
-    seen = 0
-    with open(path, "rb") as fh, pytest.raises(McapError):  # EndOfFile at the truncated tail
-        for rec in StreamReader(fh).records:
-            seen += type(rec).__name__ == "Message"
+    with open(path, "rb") as fh:
+        seen = sum(type(rec).__name__ == "Message" for rec in StreamReader(fh).records)
     assert seen >= 2 * (written + 1)
