@@ -67,6 +67,14 @@ class WrenchStamped(IdlStruct, typename="geometry_msgs::msg::dds_::WrenchStamped
 
 
 @dataclass
+class Vector3Stamped(IdlStruct, typename="geometry_msgs::msg::dds_::Vector3Stamped_"):
+    """geometry_msgs/msg/Vector3Stamped (a reading's interval: x low, y estimate, z high, N)."""
+
+    header: Header = field(default_factory=Header)
+    vector: Vector3 = field(default_factory=Vector3)
+
+
+@dataclass
 class KeyValue(IdlStruct, typename="diagnostic_msgs::msg::dds_::KeyValue_"):
     """diagnostic_msgs/msg/KeyValue."""
 
@@ -107,6 +115,7 @@ class CompressedImage(IdlStruct, typename="sensor_msgs::msg::dds_::CompressedIma
 WRENCH_STAMPED = "geometry_msgs/msg/WrenchStamped"
 DIAGNOSTIC_ARRAY = "diagnostic_msgs/msg/DiagnosticArray"
 COMPRESSED_IMAGE = "sensor_msgs/msg/CompressedImage"
+VECTOR3_STAMPED = "geometry_msgs/msg/Vector3Stamped"
 
 # -- .msg definitions, concatenated as ros2 bag writes them into MCAP 'ros2msg' schemas ------
 _SEP = "=" * 80 + "\n"
@@ -131,6 +140,8 @@ MSG_DEFINITIONS: dict[str, str] = {
          ("byte OK=0\nbyte WARN=1\nbyte ERROR=2\nbyte STALE=3\nbyte level\nstring name\nstring message\n"
           "string hardware_id\ndiagnostic_msgs/KeyValue[] values\n")),
         ("diagnostic_msgs/KeyValue", "string key\nstring value\n")]),
+    VECTOR3_STAMPED: _schema("std_msgs/Header header\ngeometry_msgs/Vector3 vector\n", [
+        ("std_msgs/Header", _HEADER), ("builtin_interfaces/Time", _TIME), ("geometry_msgs/Vector3", _VECTOR3)]),
     COMPRESSED_IMAGE: _schema("std_msgs/Header header\nstring format\nuint8[] data\n", [
         ("std_msgs/Header", _HEADER), ("builtin_interfaces/Time", _TIME)]),
 }
@@ -167,6 +178,13 @@ def wrench_message(r: ForceReading, clock: StampClock) -> WrenchStamped:
     force.z = normal force in N (NaN when there is no estimate); the rest 0."""
     return WrenchStamped(header=Header(stamp=_stamp(clock, r.timestamp_ns), frame_id=r.sensor),
                          wrench=Wrench(force=Vector3(0.0, 0.0, float(r.force_n))))
+
+
+def interval_message(r: ForceReading, clock: StampClock) -> Vector3Stamped:
+    """Vector3Stamped of a reading's interval, for plots (N): x = force_low_n, y = force_n,
+    z = force_high_n; +inf in z when open above (saturated), NaN in x and z when unknown."""
+    return Vector3Stamped(header=Header(stamp=_stamp(clock, r.timestamp_ns), frame_id=r.sensor),
+                          vector=Vector3(float(r.force_low_n), float(r.force_n), float(r.force_high_n)))
 
 
 def _num(v: float | None) -> str:
@@ -206,7 +224,9 @@ def compressed_image(sensor: str, timestamp_ns: int, data: bytes, fmt: str, cloc
 
 
 def reading_payloads(r: ForceReading, clock: StampClock, topic: str) -> list[tuple[str, str, bytes]]:
-    """(ROS 2 topic, type name, CDR bytes) of a reading: WrenchStamped on ``topic`` and
-    DiagnosticArray on ``topic + '/diagnostics'`` (``topic`` absolute, already checked)."""
+    """(ROS 2 topic, type name, CDR bytes) of a reading: WrenchStamped on ``topic``,
+    DiagnosticArray on ``topic + '/diagnostics'`` and the interval as Vector3Stamped on
+    ``topic + '/interval'`` (``topic`` absolute, already checked)."""
     return [(topic, WRENCH_STAMPED, wrench_message(r, clock).serialize()),
-            (topic + "/diagnostics", DIAGNOSTIC_ARRAY, diagnostic_message(r, clock).serialize())]
+            (topic + "/diagnostics", DIAGNOSTIC_ARRAY, diagnostic_message(r, clock).serialize()),
+            (topic + "/interval", VECTOR3_STAMPED, interval_message(r, clock).serialize())]

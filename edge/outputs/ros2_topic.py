@@ -3,7 +3,8 @@
 Each reading goes out as ``geometry_msgs/msg/WrenchStamped`` on ``topic`` (DDS topic
 ``rt`` + topic, type ``geometry_msgs::msg::dds_::WrenchStamped_``) and, unless turned off,
 its flags and per-stage latency as ``diagnostic_msgs/msg/DiagnosticArray`` on
-``topic + '/diagnostics'``. An ordinary ROS 2 node subscribes to them; no ROS
+``topic + '/diagnostics'``, and its interval as ``geometry_msgs/msg/Vector3Stamped`` on
+``topic + '/interval'`` (x low, y estimate, z high, N). An ordinary ROS 2 node subscribes to them; no ROS
 installation is needed here.
 
 Network: Cyclone DDS reads its configuration from ``CYCLONEDDS_URI`` when the first
@@ -79,6 +80,7 @@ class Ros2Topics:
 
     force: str
     diagnostics: str | None
+    interval: str | None = None
 
     @property
     def dds_force(self) -> str:
@@ -87,6 +89,10 @@ class Ros2Topics:
     @property
     def dds_diagnostics(self) -> str | None:
         return dds_topic(self.diagnostics) if self.diagnostics else None
+
+    @property
+    def dds_interval(self) -> str | None:
+        return dds_topic(self.interval) if self.interval else None
 
 
 class Ros2Publisher:
@@ -102,6 +108,9 @@ class Ros2Publisher:
         'sensor_data' (default: best effort, keep last 5, volatile) or 'reliable'.
     diagnostics : bool
         Also publish DiagnosticArray (flags, latency) on ``topic + '/diagnostics'``.
+    interval : bool
+        Also publish the reading's interval as Vector3Stamped on ``topic + '/interval'``
+        (x = force_low_n, y = force_n, z = force_high_n; inf / NaN as in the reading).
     stamp_clock : StampClock, optional
         Monotonic frame time -> ROS time; default the wall - monotonic offset at start.
 
@@ -111,9 +120,10 @@ class Ros2Publisher:
     """
 
     def __init__(self, topic: str, *, domain_id: int | None = None, qos: str = "sensor_data",
-                 diagnostics: bool = True, stamp_clock: StampClock | None = None) -> None:
+                 diagnostics: bool = True, stamp_clock: StampClock | None = None, interval: bool = True) -> None:
         force = ros_topic(topic, "--ros2 topic")
-        self.topics = Ros2Topics(force, force + "/diagnostics" if diagnostics else None)
+        self.topics = Ros2Topics(force, force + "/diagnostics" if diagnostics else None,
+                                 force + "/interval" if interval else None)
         self.qos = QosProfile.parse(qos)
         self.domain_id = domain_from_env(domain_id)
         self.clock = stamp_clock or StampClock()
@@ -125,12 +135,15 @@ class Ros2Publisher:
 
         from .ros2_messages import (
             DiagnosticArray,
+            Vector3Stamped,
             WrenchStamped,
             diagnostic_message,
+            interval_message,
             wrench_message,
         )
 
         self._wrench_message, self._diagnostic_message = wrench_message, diagnostic_message
+        self._interval_message = interval_message
 
         from cyclonedds.core import DDSException
 
@@ -148,15 +161,21 @@ class Ros2Publisher:
         if self.topics.dds_diagnostics:
             self._diag = DataWriter(self._participant, Topic(self._participant, self.topics.dds_diagnostics,
                                                              DiagnosticArray, qos=q), qos=q)
+        self._interval: Any = None
+        if self.topics.dds_interval:
+            self._interval = DataWriter(self._participant, Topic(self._participant, self.topics.dds_interval,
+                                                                 Vector3Stamped, qos=q), qos=q)
         self._closed = False
 
     def write(self, reading: ForceReading) -> None:
-        """Publish one reading (WrenchStamped, then DiagnosticArray)."""
+        """Publish one reading (WrenchStamped, then DiagnosticArray, then the interval)."""
         if self._closed:
             raise RuntimeError(f"ROS 2 publisher on {self.topics.force}: write after close")
         self._force.write(self._wrench_message(reading, self.clock))
         if self._diag is not None:
             self._diag.write(self._diagnostic_message(reading, self.clock))
+        if self._interval is not None:
+            self._interval.write(self._interval_message(reading, self.clock))
         self.published += 1
 
     def close(self) -> None:
@@ -165,6 +184,7 @@ class Ros2Publisher:
             return
         self._closed = True
         self._diag = None
+        self._interval = None
         self._force = None
         participant, self._participant = self._participant, None
         # The binding deletes an entity when its Python object goes; the participant's

@@ -16,9 +16,14 @@ pytest.importorskip("foxglove", reason="the live view needs foxglove-sdk (the 'f
 ws_client = pytest.importorskip("websockets.sync.client", reason="the test client needs 'websockets'")
 
 from tactile_force.edge.outputs.foxglove_live import FoxgloveLive  # noqa: E402
-from tactile_force.edge.reading import Flags, ForceReading  # noqa: E402
-from tactile_force.edge.outputs.ros2_messages import CompressedImage, DiagnosticArray, WrenchStamped  # noqa: E402
+from tactile_force.edge.outputs.ros2_messages import (  # noqa: E402
+    CompressedImage,
+    DiagnosticArray,
+    Vector3Stamped,
+    WrenchStamped,
+)
 from tactile_force.edge.outputs.ros2_names import StampClock  # noqa: E402
+from tactile_force.edge.reading import Flags, ForceReading, IntervalState  # noqa: E402
 
 
 def _recv_json(ws, op: str) -> dict:
@@ -43,15 +48,18 @@ def test_client_on_loopback_receives_readings_and_masks():
         with ws_client.connect(f"ws://127.0.0.1:{live.port}", subprotocols=["foxglove.sdk.v1"]) as ws:
             _recv_json(ws, "serverInfo")
             adv = {c["topic"]: c for c in _recv_json(ws, "advertise")["channels"]}
-            assert set(adv) == {"/tactile/force", "/tactile/force/diagnostics", "/tactile/left/contact_mask/compressed"}
+            assert set(adv) == {"/tactile/force", "/tactile/force/diagnostics", "/tactile/force/interval",
+                                "/tactile/left/contact_mask/compressed"}
             assert (adv["/tactile/force"]["schemaName"], adv["/tactile/force"]["encoding"],
                     adv["/tactile/force"]["schemaEncoding"]) == ("geometry_msgs/msg/WrenchStamped", "cdr", "ros2msg")
-            subs = {1: "/tactile/force", 2: "/tactile/force/diagnostics", 3: "/tactile/left/contact_mask/compressed"}
+            subs = {1: "/tactile/force", 2: "/tactile/force/diagnostics", 3: "/tactile/left/contact_mask/compressed",
+                    4: "/tactile/force/interval"}
             ws.send(json.dumps({"op": "subscribe", "subscriptions": [{"id": i, "channelId": adv[t]["id"]}
                                                                       for i, t in subs.items()]}))
             got: dict[str, list] = {t: [] for t in subs.values()}
             for _ in range(50):  # the subscription takes effect asynchronously: keep writing until data flows
-                live.write(ForceReading("left", 3_000_000_000, 1, 6.5, Flags.SATURATED))
+                live.write(ForceReading("left", 3_000_000_000, 1, 6.5, Flags.SATURATED, force_low_n=5.25,
+                                        force_high_n=math.inf, interval=IntervalState.OPEN_ABOVE))
                 live.write_frame("left", 3_000_000_000, None, np.eye(320, 240, dtype=np.uint8))
                 try:
                     while True:
@@ -69,6 +77,10 @@ def test_client_on_loopback_receives_readings_and_masks():
     assert log_time == 3_000_000_000 and w.wrench.force.z == 6.5 and w.header.frame_id == "left"
     d = DiagnosticArray.deserialize(got["/tactile/force/diagnostics"][0][1])
     assert d.status[0].level == 1 and d.status[0].message == "saturated"
+    kv = {v.key: v.value for v in d.status[0].values}
+    assert (kv["force_low_n"], kv["force_high_n"], kv["interval"]) == ("5.25", "inf", "open_above")
+    iv = Vector3Stamped.deserialize(got["/tactile/force/interval"][0][1])
+    assert (iv.vector.x, iv.vector.y, iv.vector.z) == (5.25, 6.5, math.inf) and iv.header.frame_id == "left"
     img = CompressedImage.deserialize(got["/tactile/left/contact_mask/compressed"][0][1])
     import cv2
 
