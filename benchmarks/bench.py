@@ -182,12 +182,14 @@ def overall_verdict(verdicts: Sequence[str]) -> str:
 
 # ----------------------------------------------------------------------------- what is measured
 def shipped_bundles() -> list[Path]:
-    """Every bundle shipped in the package (edge/models/*/ with a model.json), the default first.
+    """Every bundle shipped in the package (edge/models/*/ with a model.json), the default first
+    (:func:`tactile_force.edge.scene.shipped_bundles`; read here where that is missing)."""
+    from tactile_force.edge import scene
 
-    Until ``tactile_force.edge`` lists them itself, the folders are read here."""
-    from tactile_force.edge.scene import default_bundle_path
-
-    default = default_bundle_path()
+    listed = getattr(scene, "shipped_bundles", None)
+    if listed is not None:
+        return list(listed().values())
+    default = scene.default_bundle_path()
     root = default.parent
     others = sorted(p for p in root.iterdir() if p.is_dir() and p != default and (p / "model.json").is_file()) \
         if root.is_dir() else []
