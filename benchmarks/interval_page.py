@@ -52,7 +52,8 @@ def binomial_band(p: float, n: int) -> tuple[float, float]:
 
 def table_rows(truth: np.ndarray, low: np.ndarray, high: np.ndarray, known: np.ndarray) -> list[str]:
     """Markdown rows per true-force bin: readings, unknown, inside / known, coverage, median width / truth."""
-    rows = ["| true force (N) | readings | interval unknown | open above | inside / known | coverage | median width / true force |",
+    rows = ["| true force (N) | readings | interval unknown | open above | inside / known | coverage "
+            "| median width / true force |",
             "|---|---:|---:|---:|---:|---:|---:|"]
     edges = list(TRUE_BINS)
     for lo, hi in [*zip(edges, edges[1:]), (None, None)]:
@@ -155,7 +156,8 @@ def real_section() -> tuple[str, dict]:
         f"interval on its leave-one-out predictions: {iv.n} pairs, {len(iv.bins)} bin(s), half-width factor "
         f"q = {q if q is None else round(q, 4)} (with 11 points and 0.90 coverage the conformal quantile is the "
         f"largest of the 11 scores). Reported on the 11 held-out frames of `{held_dir.name}` (never fitted on), "
-        "estimates from the calibrated bundle's model as calibrate-force computes them (no gate: each frame is a press).",
+        "estimates from the calibrated bundle's model as calibrate-force computes them (no gate: each frame is a "
+        "press).",
         "",
         *rows,
         "",
