@@ -84,8 +84,7 @@ def describe_manifest(b) -> list[str]:  # b: Bundle
         c = m.force_calibration
         lines.append(f"calib     {c.method} force calibration, {len(c.raw_n)} knots, fitted on {c.frames} frames "
                      f"({c.data or '?'})")
-    if m.data_stats:
-        lines.append(f"data      statistics of {m.data_stats.frames} frames recorded (out-of-distribution check on)")
+    lines += data_stats_lines(m)
     p = m.provenance
     lines.append(f"weights   trained on {p.trained_on}; checkpoint {p.checkpoint or '-'}"
                  + (f"; quantized from {p.quantized_from.bundle}" if p.quantized_from else "")
@@ -93,6 +92,17 @@ def describe_manifest(b) -> list[str]:  # b: Bundle
     if p.note:
         lines.append(f"note      {p.note}")
     return lines
+
+
+def data_stats_lines(m) -> list[str]:  # m: Manifest
+    """What the bundle's data statistics switch on (the runtime's honesty checks), one line."""
+    d = m.data_stats
+    if d is None:
+        why = m.data_stats_missing or "none recorded by the tool that wrote this bundle"
+        return [f"data      NO data statistics ({why}): out-of-distribution and contact-size checks OFF"]
+    contact = ("contact-size check on" if d.contact_measured
+               else "contact-size check OFF (no no-contact background was given)")
+    return [f"data      statistics of {d.frames} frames ({d.source}): out-of-distribution check on, {contact}"]
 
 
 def _num(x: float | None) -> str:

@@ -38,6 +38,8 @@ class DataStats:
         (None: no contact in the data).
     deformation_max: the largest deformation the gate saw: mean colour change inside the
         contact mask (grey levels, max over channels; None: no contact in the data).
+    contact_measured: False when no no-contact background was given: the colour ranges (the
+        out-of-distribution check) are recorded, the contact sizes are not (contact-size check off).
     margin: grey levels added on both sides of every cell's range by the check.
     max_outside_frac: share of thumbnail values outside their ranges above which a frame is
         out of distribution.
@@ -54,6 +56,7 @@ class DataStats:
     channel_std: list[float] = field(default_factory=list)
     contact_area_frac_max: float | None = None
     deformation_max: float | None = None
+    contact_measured: bool = True
     margin: float = 12.0
     max_outside_frac: float = 0.10
     source: str = ""
@@ -129,12 +132,13 @@ class DataStatsCheck:
         return ""
 
 
-def compute_data_stats(frames_bgr: Iterable[np.ndarray], background: np.ndarray | Iterable[np.ndarray],
+def compute_data_stats(frames_bgr: Iterable[np.ndarray], background: np.ndarray | Iterable[np.ndarray] | None,
                        source: str = "", gate_options: GateOptions | None = None,
                        lo_pct: float = 0.5, hi_pct: float = 99.5) -> DataStats:
     """Statistics of ``frames_bgr`` (each HxWx3 uint8 BGR, e.g. a bundle's calibration or
     training frames) seen through the contact gate with ``background`` (one no-contact frame
-    or several) as its background.
+    or several) as its background. ``background`` None: the colour ranges only
+    (``contact_measured`` False; the thumbnails do not depend on the background).
 
     The gate runs with ``gate_options`` (default :class:`GateOptions`) with its judging off
     and its background frozen, so every frame is measured against the same background.
@@ -146,14 +150,18 @@ def compute_data_stats(frames_bgr: Iterable[np.ndarray], background: np.ndarray 
 
     opts = dataclasses.replace(gate_options or GateOptions(), trust=False, refresh_rate=0.0)
     gate = ContactGate(opts)
-    bgs = [background] if isinstance(background, np.ndarray) and background.ndim == 3 else list(background)
-    gate.capture_background(bgs)
+    measured = background is not None
+    if background is not None:
+        bgs = [background] if isinstance(background, np.ndarray) and background.ndim == 3 else list(background)
+        gate.capture_background(bgs)
     thumbs, areas, deforms = [], [], []
     for frame in frames_bgr:
+        if not gate.background_ready:  # no background: any frame will do, only the thumbnails are kept
+            gate.capture_background([frame])
         r = gate.update(frame)
         assert r.thumb is not None
         thumbs.append(r.thumb.astype(np.float32))
-        if r.contact:
+        if r.contact and measured:
             areas.append(r.area_frac)
             deforms.append(r.deformation)
     if not thumbs:
@@ -170,5 +178,35 @@ def compute_data_stats(frames_bgr: Iterable[np.ndarray], background: np.ndarray 
         channel_std=[round(float(v), 3) for v in means.std(axis=0)],
         contact_area_frac_max=round(float(max(areas)), 5) if areas else None,
         deformation_max=round(float(max(deforms)), 3) if deforms else None,
+        contact_measured=measured,
         source=source or f"{len(t)} frames",
     )
+
+
+def frames_data_stats(frames_bgr: Iterable[np.ndarray], background: object, source: str,
+                      tool: str) -> DataStats:
+    """:func:`compute_data_stats` for a tool that writes a bundle (export, quantize, compress).
+
+    background: None, a no-contact frame (HxWx3 uint8 BGR) or the path of one (image file or
+    folder of them); without one only the colour ranges are recorded and a warning says the
+    contact-size check is off. Raises :class:`~.errors.SourceError` for an unreadable background.
+    """
+    import os
+
+    if isinstance(background, (str, os.PathLike)):
+        from .sources import load_background  # OpenCV: imported only here
+
+        background = load_background(background)
+    if background is None:
+        _log.warning("%s: no no-contact background given: data_stats record the frames' colours (the "
+                     "out-of-distribution check) but not their contact sizes (the contact-size check is off); "
+                     "pass --background NO_CONTACT.png to record both", tool)
+    return compute_data_stats(frames_bgr, background, source=source)  # type: ignore[arg-type]
+
+
+def no_frames_warning(tool: str, why: str) -> str:
+    """The ``data_stats_missing`` text for a bundle written without frames, also logged as a warning."""
+    text = (f"{tool} saw no {why}: no data statistics, so the runtime's out-of-distribution and contact-size "
+            "checks are OFF for this bundle")
+    _log.warning("%s", text)
+    return text

@@ -304,6 +304,11 @@ class Manifest:
     provenance: Provenance = field(default_factory=Provenance)
     force_calibration: ForceCalibration | None = None
     data_stats: DataStats | None = None
+    #: why ``data_stats`` is None: the bundle's out-of-distribution and contact-size checks are
+    #: off (the tool that wrote it saw no frames); "" with data_stats None: not recorded (older bundles)
+    data_stats_missing: str = ""
+    #: the error bar of every reading (edge/interval.py); None: readings' intervals are unknown
+    interval: ForceInterval | None = None
     created_by: str = "tactile-force"
 
     def __post_init__(self) -> None:
@@ -368,11 +373,6 @@ def manifest_from_json(raw: object, source: str = "model.json") -> Manifest:
     BundleError
         Naming the field that is missing, unknown, of the wrong type or inconsistent.
     """
-    #: why ``data_stats`` is None: the bundle's out-of-distribution and contact-size checks are
-    #: off (the tool that wrote it saw no frames); "" with data_stats None: not recorded (older bundles)
-    data_stats_missing: str = ""
-    #: the error bar of every reading (edge/interval.py); None: readings' intervals are unknown
-    interval: ForceInterval | None = None
     if not isinstance(raw, dict):
         raise BundleError(f"{source}: not a tactile-force manifest (expected a JSON object, got {type(raw).__name__})")
     version = raw.get("format_version")

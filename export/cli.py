@@ -69,10 +69,24 @@ def configure_export(p: argparse.ArgumentParser) -> None:
                    help="ONNX opset, 17 up to the newest the installed onnx knows (default 18); the manifest records "
                         "the opset the graph really declares")
     p.add_argument("--trained-on", default="", help="free text recorded as the weights' provenance")
+    p.add_argument("--background", type=Path,
+                   help="no-contact frame of the --parity-data sensor: the manifest's data statistics (from the "
+                        "parity frames) then also record contact sizes for the runtime's contact-size check")
     p.add_argument("--force", action="store_true", help="replace --out if it exists")
     p.add_argument("--no-fold-preprocess", action="store_true",
                    help="keep the BGR flip and /255 as graph nodes instead of folding them into conv1's weights "
                         "(the fold is exact and ~0.1 ms faster on a compact model; parity is checked either way)")
+
+
+def _warn_data_stats(tool: str, b) -> None:
+    """Say loudly on stderr when the written bundle's honesty checks are (partly) off."""
+    m = b.manifest
+    if m.data_stats is None:
+        print(f"tactile-force {tool}: WARNING: {m.data_stats_missing or 'no data statistics recorded'}",
+              file=sys.stderr)
+    elif not m.data_stats.contact_measured:
+        print(f"tactile-force {tool}: warning: no --background given: the data statistics hold the frames' colours "
+              "(out-of-distribution check on) but not their contact sizes (contact-size check off)", file=sys.stderr)
 
 
 def main_export(args: argparse.Namespace) -> int:
@@ -81,8 +95,9 @@ def main_export(args: argparse.Namespace) -> int:
     opts = ExportOptions(variant=args.variant, width=args.width, input_scale=args.input_scale,
                          parity_data=args.parity_data, parity_tol_n=args.tolerance, opset=args.opset,
                          overwrite=args.force, trained_on=args.trained_on,
-                         fold_preprocess=not args.no_fold_preprocess)
+                         fold_preprocess=not args.no_fold_preprocess, background=args.background)
     b = export_bundle(args.checkpoint, args.out, opts)
+    _warn_data_stats("export", b)
     from tactile_force.edge.cli_bundle import describe_manifest
 
     print(f"wrote {b.path}  (export took {b.manifest.provenance.export_seconds} s)")
@@ -147,9 +162,7 @@ def main_quantize(args: argparse.Namespace) -> int:
                            min_calibration_frames=args.min_frames, max_calibration_frames=args.max_frames,
                            overwrite=args.force, show_progress=True, background=args.background)
     b = quantize_bundle(args.bundle, args.out, opts, calibration=args.calib, eval_data=args.eval)
-    if b.manifest.data_stats is None:
-        print("note: no data statistics recorded (pass --background NO_CONTACT.png): the runtime cannot flag "
-              "frames outside the calibration data as out_of_distribution", file=sys.stderr)
+    _warn_data_stats("quantize", b)
     from tactile_force.edge.cli_bundle import describe_manifest
 
     print(f"wrote {b.path}")

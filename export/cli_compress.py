@@ -29,6 +29,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--max-frames", type=int, default=6000, help="unlabelled frames used at most (default 6000)")
     parser.add_argument("--no-augment", action="store_true", help="no LED gain/offset, noise and shift augmentation")
     parser.add_argument("--threads", type=int, default=None, help="torch threads for training (default: all cores)")
+    parser.add_argument("--max-vs-teacher-re", type=float, default=0.25,
+                        help="largest RE against the teacher (held-out unlabelled frames) a student may have to be "
+                             "written (default 0.25); when none is within it, no bundle is written (exit code 1)")
+    parser.add_argument("--background", default=None,
+                        help="no-contact frame of the --frames sensor: the bundle's data statistics then also record "
+                             "contact sizes (without it: colours only, the out-of-distribution check)")
 
 
 def students_plot(students: list[dict], budget_ms: float, out: str) -> Path:
@@ -64,7 +70,8 @@ def main(args: argparse.Namespace) -> int:
                                   ladder=parse_ladder(args.ladder) if args.ladder else DEFAULT_LADDER,
                                   epochs=args.epochs, max_frames=args.max_frames, threads=args.threads,
                                   augment=None if args.no_augment else Augment(),
-                                  show_progress=True)
+                                  show_progress=True, background=args.background,
+                                  max_vs_teacher_re=args.max_vs_teacher_re)
         result = compress_model(options)
     except (CompressError, CheckpointError, BundleError) as exc:
         print(f"tactile-force compress: error: {exc}", file=sys.stderr)
@@ -77,13 +84,19 @@ def main(args: argparse.Namespace) -> int:
         raise
     for r in result.students:
         labels = f", vs labels RE {r['vs_labels']['re_mean']:.3f}" if "vs_labels" in r else ""
+        blocks = "/".join(f"{v:.3f}" for v in r.get("p99_blocks_ms", []))
+        limit = "" if r.get("within_error_limit", True) else f" (above the {args.max_vs_teacher_re:g} RE limit)"
         print(f"{r['name']:>18}: vs teacher RE {r['vs_teacher']['re_mean']:.3f} MAE {r['vs_teacher']['mae_mean']:.3f} N"
               f"{labels}, p99 {r['p99_ms']:.3f} ms{' (resumed)' if r.get('resumed') else ''}")
     if result.students:
         print(f"wrote {students_plot(result.students, args.budget_ms, args.out)} (students' error vs p99, budget line)")
     if result.bundle is None:
-        print(f"tactile-force compress: no student fits the {args.budget_ms:g} ms budget on this host; students are "
-              f"in {args.out}/work, summary {result.summary_path}", file=sys.stderr)
+        fits = [r for r in result.students if r["p99_ms"] <= args.budget_ms]
+        why = (f"no student fits the {args.budget_ms:g} ms budget on this host" if not fits else
+               f"every student within the {args.budget_ms:g} ms budget is further from the teacher than "
+               f"--max-vs-teacher-re {args.max_vs_teacher_re:g} (train longer, more frames, a wider student)")
+        print(f"tactile-force compress: {why}; no bundle written; students are in {args.out}/work, summary "
+              f"{result.summary_path}", file=sys.stderr)
         return 1
     assert result.chosen is not None
     print(f"chose {result.chosen['name']} (most accurate within {args.budget_ms:g} ms p99); wrote {result.bundle.path}")

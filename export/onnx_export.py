@@ -57,6 +57,9 @@ class ExportOptions:
     parity_data: an authors'-layout dataset or PNG folder (or loaded CalibrationData);
     None checks on random frames and says so in the manifest. fold_preprocess: fold the BGR
     flip and the 1/255 into conv1's weights (exact up to float rounding, faster graph).
+    background: a no-contact frame (or image path) of the parity frames' sensor: the manifest's
+    ``data_stats`` (from the parity frames) then also record contact sizes. Without parity
+    frames the bundle has no data_stats and ``data_stats_missing`` says the checks are off.
     """
 
     variant: str | None = None
@@ -71,6 +74,7 @@ class ExportOptions:
     name: str = ""
     overwrite: bool = False
     trained_on: str = ""
+    background: str | os.PathLike | np.ndarray | None = None
 
 
 @dataclass
@@ -236,6 +240,19 @@ def _resolve(source, options: ExportOptions) -> tuple[nn.Module, ModelSpec, dict
     return model, spec, prov
 
 
+def _data_stats_fields(data: CalibrationData | None, background: object) -> dict:
+    """Manifest ``data_stats`` of the parity frames the export saw (RGB variants), else
+    ``data_stats_missing``: why there are none (the runtime's honesty checks are off)."""
+    from tactile_force.edge.data_stats import frames_data_stats, no_frames_warning
+
+    if data is not None and "rgb" in data.inputs and len(data.inputs["rgb"]):
+        return {"data_stats": frames_data_stats(list(data.inputs["rgb"]), background, data.source, "export")}
+    if data is not None:
+        return {"data_stats_missing": no_frames_warning("export", "RGB frames (a depth-only variant)")}
+    return {"data_stats_missing": no_frames_warning("export", "real frames (no --parity-data; parity was checked "
+                                                    "on random frames)")}
+
+
 def export_bundle(source: str | os.PathLike | nn.Module, dest: str | os.PathLike,
                   options: ExportOptions | None = None) -> Bundle:
     """Export a checkpoint file (or in-memory model / ForceNet) to a verified fp32 bundle at ``dest``."""
@@ -275,6 +292,7 @@ def export_bundle(source: str | os.PathLike | nn.Module, dest: str | os.PathLike
                                   opset=written_opset(onnx_bytes)),
         parity=Parity(max_abs_diff_n=parity.max_abs_diff_n, mean_abs_diff_n=parity.mean_abs_diff_n,
                       frames=parity.frames, data=parity.source, tolerance_n=parity.tolerance_n),
+        **_data_stats_fields(data if options.parity_data is not None else None, options.background),
         provenance=Provenance(**{k: str(v) for k, v in known.items()},
                               epochs=epochs if isinstance(epochs, int) and not isinstance(epochs, bool) else None,
                               trained_on=str(options.trained_on or prov.get("trained_on", "unknown")),

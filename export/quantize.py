@@ -304,6 +304,17 @@ def quantize_bundle(src: Bundle | str | os.PathLike, dest: str | os.PathLike, op
     manifest = copy.deepcopy(m)
     manifest.precision = Precision(o.mode)
     manifest.name = o.name or dest.name
+    # The runtime's honesty checks need data_stats: from the calibration frames (contact sizes
+    # too with --background, below); without new frames the source's are kept; with neither, say so.
+    rgb_calib = calib is not None and "rgb" in calib.inputs
+    manifest.data_stats_missing = ""
+    if rgb_calib and o.background is None and m.data_stats is None:
+        manifest.data_stats = calibration_data_stats(calib, None)  # type: ignore[arg-type]
+    elif not rgb_calib and m.data_stats is None:
+        from tactile_force.edge.data_stats import no_frames_warning
+
+        manifest.data_stats_missing = no_frames_warning(
+            "quantize", "RGB calibration frames (and the source bundle has no data_stats)")
     manifest.quantization = from_json(Quantization, info, "quantization")
     manifest.error = _error_report(fp32_bytes, q_bytes, evaluation, same) if evaluation is not None else None
     manifest.provenance = dataclasses.replace(m.provenance, quantized_from=SourceRef(bundle=m.name, sha256=m.sha256),
@@ -314,10 +325,13 @@ def quantize_bundle(src: Bundle | str | os.PathLike, dest: str | os.PathLike, op
 
 
 def calibration_data_stats(data: CalibrationData, background: object):
-    """Manifest ``data_stats`` of calibration frames seen against a no-contact ``background``."""
-    from tactile_force.edge.data_stats import compute_data_stats
+    """Manifest ``data_stats`` of calibration frames seen against a no-contact ``background``
+    (None: their colours only, with a warning that the contact-size check is off)."""
+    from tactile_force.edge.data_stats import compute_data_stats, frames_data_stats
     from tactile_force.edge.frames import check_frame
 
+    if background is None:
+        return frames_data_stats(list(data.inputs["rgb"]), None, data.source, "quantize")
     if isinstance(background, (str, os.PathLike)):
         import cv2
 

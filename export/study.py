@@ -457,7 +457,7 @@ def _row_text(c: Configuration) -> str:
 
 def table(report: StudyReport) -> tuple[list[str], list[list[str]]]:
     """Header and rows of the configurations table."""
-    head = ["configuration", "RE", "MAE (N)", "mean |f - fp32| (N)", "max |f - fp32| (N)", "inference p50 ms",
+    head = ["configuration", "RE", "MAE (N)", "mean abs(f - fp32) (N)", "max abs(f - fp32) (N)", "inference p50 ms",
             "total p50 ms", "total p99 ms", "Pareto", "within budget"]
     rows = []
     for c in report.configurations:
@@ -470,6 +470,16 @@ def table(report: StudyReport) -> tuple[list[str], list[list[str]]]:
     return head, rows
 
 
+def _rel(path: str | None) -> str:
+    """``path`` relative to the working directory when inside it (pages stay machine-neutral)."""
+    if not path:
+        return ""
+    try:
+        return str(Path(path).resolve().relative_to(Path.cwd().resolve()))
+    except ValueError:
+        return path
+
+
 def markdown(report: StudyReport, title: str = "Quantization study") -> str:
     """study.md: command, machine, the table, the sensitivity ranking, the recommendation."""
     head, rows = table(report)
@@ -478,7 +488,7 @@ def markdown(report: StudyReport, title: str = "Quantization study") -> str:
     lines = [f"# {title}", "", f"Command: `{report.command}`" if report.command else "", "",
              f"Machine: {m.get('cpu')}, {m.get('cores')} logical cores, {m.get('os')}, Python {m.get('python')}; "
              f"{m.get('versions')}. At start: {m.get('background_load')}.", "",
-             f"Source: `{report.source}` ({report.variant}, fp32). Error: `{report.data}` replayed through "
+             f"Source: `{_rel(report.source)}` ({report.variant}, fp32). Error: `{_rel(report.data)}` replayed through "
              f"ForceRuntime as `tactile-force run` does ({e0.n if e0 else 0} CNN readings with truth). Calibration: "
              f"{report.calibration}" + (" - **the same frames as the error** (optimistic for int8 static; give "
                                         "--calib)" if report.same_frames else "") + ".",
@@ -493,7 +503,7 @@ def markdown(report: StudyReport, title: str = "Quantization study") -> str:
     kept = [c for c in report.configurations if c.bundle]
     if kept:
         lines += ["", "Bundles kept (Pareto front and the recommendation): "
-                  + ", ".join(f"`{c.bundle}`" for c in kept)]
+                  + ", ".join(f"`{_rel(c.bundle)}`" for c in kept)]
     if report.sensitivity:
         lines += ["", f"## Per-node sensitivity (one node kept float on top of {report.sensitivity_base})", "",
                   "| node | op | mean abs(f - fp32) (N) | share of the base's error bought back |",

@@ -41,6 +41,7 @@ def setup(tmp_path_factory):
 
 def _options(setup, out, **kw):
     root, unl, lab, teacher = setup
+    kw.setdefault("max_vs_teacher_re", float("inf"))  # 2-epoch students: the resume logic is tested, not accuracy
     return CompressOptions(teacher=teacher, frames=[unl / "images"], labels=lab, out=out, ladder=LADDER, epochs=2,
                            budget_ms=1e6, latency_runs=20, calibration_frames=40, threads=2, **kw)
 
