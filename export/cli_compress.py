@@ -87,7 +87,8 @@ def main(args: argparse.Namespace) -> int:
         blocks = "/".join(f"{v:.3f}" for v in r.get("p99_blocks_ms", []))
         limit = "" if r.get("within_error_limit", True) else f" (above the {args.max_vs_teacher_re:g} RE limit)"
         print(f"{r['name']:>18}: vs teacher RE {r['vs_teacher']['re_mean']:.3f} MAE {r['vs_teacher']['mae_mean']:.3f} N"
-              f"{labels}, p99 {r['p99_ms']:.3f} ms{' (resumed)' if r.get('resumed') else ''}")
+              f"{limit}{labels}, p99 {r['p99_ms']:.3f} ms (median of blocks {blocks})"
+              f"{' (resumed)' if r.get('resumed') else ''}")
     if result.students:
         print(f"wrote {students_plot(result.students, args.budget_ms, args.out)} (students' error vs p99, budget line)")
     if result.bundle is None:

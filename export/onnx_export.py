@@ -258,9 +258,11 @@ def export_bundle(source: str | os.PathLike | nn.Module, dest: str | os.PathLike
     """Export a checkpoint file (or in-memory model / ForceNet) to a verified fp32 bundle at ``dest``."""
     options = options or ExportOptions()
     t0 = time.perf_counter()
-    dest = Path(dest)
-    if dest.exists() and not options.overwrite:
-        raise TactileForceError(f"{dest}: already exists (use --force / overwrite=True to replace it)")
+    from tactile_force.edge.output_guard import OutputKind, check_output
+
+    inputs = [("checkpoint", source if isinstance(source, (str, os.PathLike)) else None),
+              ("--parity-data", options.parity_data if isinstance(options.parity_data, (str, os.PathLike)) else None)]
+    dest = check_output(dest, inputs, force=options.overwrite, kind=OutputKind.BUNDLE)
     model, spec, prov = _resolve(source, options)
     scale_factor(spec.input_scale)
     model.eval()
@@ -299,4 +301,4 @@ def export_bundle(source: str | os.PathLike | nn.Module, dest: str | os.PathLike
                               torch=torch.__version__, exporter="torch.onnx.export (dynamo)",
                               export_seconds=round(time.perf_counter() - t0, 2)),
     )
-    return write_bundle(dest, onnx_bytes, manifest, overwrite=options.overwrite)
+    return write_bundle(dest, onnx_bytes, manifest, overwrite=options.overwrite, inputs=inputs)

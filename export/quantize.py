@@ -248,9 +248,13 @@ def quantize_bundle(src: Bundle | str | os.PathLike, dest: str | os.PathLike, op
     _check_options(o)
     onnx = require("onnx", "export", "Quantization")
     t0 = time.perf_counter()
-    dest = Path(dest)
-    if dest.exists() and not o.overwrite:
-        raise QuantizeError(f"{dest}: already exists (use --force / overwrite=True to replace it)")
+    from tactile_force.edge.output_guard import OutputKind, check_output
+
+    src_path = src.path if isinstance(src, Bundle) else src
+    inputs = [(flag, p if isinstance(p, (str, os.PathLike)) else None)
+              for flag, p in (("bundle", src_path), ("--calib", calibration), ("--eval", eval_data),
+                              ("--background", o.background))]
+    dest = check_output(dest, inputs, force=o.overwrite, kind=OutputKind.BUNDLE)
     bundle = src if isinstance(src, Bundle) else load_bundle(src)
     m = bundle.manifest
     if m.precision != "fp32":
@@ -321,7 +325,7 @@ def quantize_bundle(src: Bundle | str | os.PathLike, dest: str | os.PathLike, op
                                               quantize_seconds=round(time.perf_counter() - t0, 2))
     if o.background is not None and calib is not None and "rgb" in calib.inputs:
         manifest.data_stats = calibration_data_stats(calib, o.background)
-    return write_bundle(dest, q_bytes, manifest, overwrite=o.overwrite)
+    return write_bundle(dest, q_bytes, manifest, overwrite=o.overwrite, inputs=inputs)
 
 
 def calibration_data_stats(data: CalibrationData, background: object):
