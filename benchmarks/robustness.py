@@ -202,7 +202,9 @@ def make_dataset(root: Path, n: int = 1, forces: list[float] | None = None) -> P
 _LABEL_TOKENS = [b"", b"\n", b"   \n", b"nan", b"NaN\n", b"inf", b"-inf", b"-5", b"-5.0\n", b"1e308", b"-0.0",
                  b"0", b"0.0\n", b"200", b"200.0001", b"1_000", b"0x10", b"\xef\xbb\xbf3.5\n", b"\xff\xfe3\n",
                  b"3.5,2.0\n", b"abc\n", b"\x00\x00", b"1.0813515186309814\n0.0173\n0.0175\n", b"  \n 4.2 \n",
-                 b"1e-3", b".5", b"5.", b"+4", b"4 N", b"\xe9\n", b"12\x00\n", b"1e400", b"infinity"]
+                 b"1e-3", b".5", b"5.", b"+4", b"4 N", b"\xe9\n", b"12\x00\n", b"1e400", b"infinity",
+                 b"1,08\n", b"0,95\n", b"1.08 N\n", b"1.08N\n", b"108 g\n", b"3.5; 2.0\n", b"3.5 2.0\n",
+                 b"12,5 N\n", b"1.5 # scale\n"]
 
 
 def label_bytes() -> st.SearchStrategy[bytes]:
@@ -225,13 +227,20 @@ def expected_label(data: bytes) -> float | None:
     if "\x00" in text:
         return None
     first = next((ln.strip() for ln in text.splitlines() if ln.strip()), "")
-    token = re.split(r"[\s,;]+", first)[0] if first else ""
-    if not token or set(token) - set("0123456789.eE+-"):
+    if re.match(r"[+-]?\d+,\d", first):  # a decimal comma: 1,08
         return None
-    try:
-        v = float(token)
-    except ValueError:
+    fields = [f for f in re.split(r"\s*[,;]\s*|\s+", first) if f]
+    if not fields:
         return None
+    values = []
+    for f in fields:  # the force, then only numbers (no unit, no text)
+        if set(f) - set("0123456789.eE+-"):
+            return None
+        try:
+            values.append(float(f))
+        except ValueError:
+            return None
+    v = values[0]
     return v if math.isfinite(v) and 0.0 <= v <= MAX_FORCE_N else None
 
 

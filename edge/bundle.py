@@ -28,6 +28,7 @@ import json
 import os
 import shutil
 import tempfile
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -208,7 +209,8 @@ def _exchange(a: Path, b: Path) -> bool:
 
 
 def write_bundle(dest: str | os.PathLike, onnx_bytes: bytes, manifest: Manifest,
-                 extra_files: dict[str, bytes] | None = None, overwrite: bool = False) -> Bundle:
+                 extra_files: dict[str, bytes] | None = None, overwrite: bool = False,
+                 inputs: Iterable[tuple[str, str | os.PathLike | None]] = ()) -> Bundle:
     """Write a bundle folder crash-safely and return it verified.
 
     Parameters
@@ -222,7 +224,10 @@ def write_bundle(dest: str | os.PathLike, onnx_bytes: bytes, manifest: Manifest,
     extra_files
         More files to put in the folder (name -> bytes).
     overwrite
-        Replace an existing ``dest`` (atomically).
+        Replace an existing ``dest`` (atomically); only a bundle folder or an empty folder.
+    inputs
+        (name, path) of everything the bundle was made from: ``dest`` must not be, hold or lie
+        inside any of them (:func:`~tactile_force.edge.output_guard.check_output`), overwrite or not.
 
     Returns
     -------
@@ -230,6 +235,10 @@ def write_bundle(dest: str | os.PathLike, onnx_bytes: bytes, manifest: Manifest,
         The written bundle, read back and verified.
     """
     dest = Path(dest)
+    if inputs:
+        from .output_guard import OutputKind, check_output
+
+        check_output(dest, inputs, force=True, kind=OutputKind.BUNDLE, flag="bundle destination")
     _recover(dest)
     for stale in stale_partials(dest):
         shutil.rmtree(stale, ignore_errors=True)
@@ -237,6 +246,9 @@ def write_bundle(dest: str | os.PathLike, onnx_bytes: bytes, manifest: Manifest,
         raise BundleError(f"{dest}: already exists (pass overwrite=True / --force to replace it)")
     if dest.exists() and not dest.is_dir():
         raise BundleError(f"{dest}: exists and is not a bundle folder; refusing to replace it")
+    if dest.is_dir() and any(dest.iterdir()) and not (dest / "model.json").is_file():
+        raise BundleError(f"{dest}: is a folder of other files (no model.json), not a bundle; overwrite replaces "
+                          "only a bundle folder: expected a new folder")
     if not onnx_bytes:
         raise BundleError(f"{dest}: refusing to write an empty ONNX model")
     manifest.sha256 = hashlib.sha256(onnx_bytes).hexdigest()

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import argparse
 import copy
+import logging
 import os
 import sys
 from dataclasses import dataclass
@@ -251,6 +252,7 @@ def read_labelled(root: str | os.PathLike, need_depth: bool = False) -> Labelled
     from .dataset import AuthorsDataset
     from .errors import DatasetError
     from .frames import check_frame
+    from .labels import unit_problem
 
     p = Path(root)
     if not p.is_dir():
@@ -258,8 +260,11 @@ def read_labelled(root: str | os.PathLike, need_depth: bool = False) -> Labelled
     try:
         ds = AuthorsDataset(p, require_depth=need_depth)
         samples = [ds.load(n) for n in ds.ids]
+        ds.check_unique(samples)  # a copied press would make the leave-one-out error read near zero
     except DatasetError as exc:
         raise CalibrationRefused(f"--data: {exc}") from None
+    if (problem := unit_problem([s.force_n for s in samples], f"--data {p}")) is not None:
+        logging.getLogger(__name__).warning(problem)
     for s in samples:
         try:
             check_frame(s.frame)
@@ -296,13 +301,11 @@ def calibrate_bundle(bundle_path: str | os.PathLike, data: str | os.PathLike, ou
     from .bundle import load_bundle, write_bundle
     from .inference import OnnxForceModel
     from .manifest import ErrorFigures, ErrorReport, SourceRef
+    from .output_guard import OutputKind, check_output
 
+    inputs = [("bundle", bundle_path), ("--data", data)]
+    dest = check_output(out, inputs, force=overwrite, kind=OutputKind.BUNDLE)
     src = load_bundle(bundle_path)
-    dest = Path(out)
-    if dest.exists() and not overwrite:
-        raise CalibrationRefused(f"--out {dest}: already exists (pass --force to replace it)")
-    if dest.resolve() == src.path.resolve():
-        raise CalibrationRefused(f"--out {dest}: is the source bundle; write the calibrated bundle to a new folder")
     model = OnnxForceModel(src, threads=1, calibrate=False)
     frames = read_labelled(data, need_depth=model.needs_depth)
     raw = raw_estimates(model, frames)

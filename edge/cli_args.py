@@ -37,3 +37,27 @@ def positive_float(text: str) -> float:
     if not (math.isfinite(v) and v > 0):
         raise argparse.ArgumentTypeError(f"{v}: expected a finite number > 0")
     return v
+
+
+def finite_float(text: str) -> float:
+    """argparse type: a finite number (no nan, inf)."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f"{v}: expected a finite number")
+    return v
+
+
+def float_in(low: float, high: float, *, low_open: bool = False, high_open: bool = False) -> Callable[[str], float]:
+    """argparse type: a finite number in the range ``low..high`` (``(`` / ``)`` when open)."""
+
+    def parse(text: str) -> float:
+        v = finite_float(text)
+        if (v < low or (low_open and v == low)) or (v > high or (high_open and v == high)):
+            lo, hi = "(" if low_open else "[", ")" if high_open else "]"
+            raise argparse.ArgumentTypeError(f"{v:g}: expected a number in {lo}{low:g}, {high:g}{hi}")
+        return v
+
+    return parse

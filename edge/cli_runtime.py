@@ -12,14 +12,16 @@ import argparse
 import json
 import math
 import os
+import signal
 import sys
+import threading
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import TextIO
 
 import numpy as np
 
-from .cli_args import non_negative_int, positive_float, positive_int
+from .cli_args import positive_float, positive_int
 from .errors import CheckFailedError, SceneError, SourceError
 from .plots import nice_ticks  # noqa: F401 - re-exported (tests, older callers)
 from .reading import Flags, ForceReading
@@ -96,8 +98,13 @@ def configure_run(p: argparse.ArgumentParser) -> None:
                    help="with --out FILE.mcap: also log each frame (JPEG) and its contact mask (PNG) there")
     p.add_argument("--ros2", metavar="TOPIC", help="with --source: publish readings on this ROS 2 topic")
     p.add_argument("--save-scene", metavar="FILE", help="write the scene that runs as a TOML file")
-    p.add_argument("--max-frames", type=non_negative_int, default=None,
-                   help="stop after this many readings (default: scene / until sources end)")
+    p.add_argument("--max-frames", type=positive_int, default=None,
+                   help="stop after this many readings (>= 1; default: scene / until sources end)")
+    p.add_argument("--force", action="store_true",
+                   help="with --out: replace output files that exist (never an input)")
+    p.add_argument("--depth-mapping", metavar="FILE",
+                   help="with --source and a depth bundle (d, dmod, rgbmod+d) whose manifest records no mapping: "
+                        "the colour->normal .npz (the paper MLP or a 'tactile-force calibrate-depth' result)")
 
 
 def _summary_lines(stats, runtime) -> list[str]:
@@ -178,13 +185,50 @@ class LearningStatus:
         self._learning.clear()
 
 
+class SignalStop:
+    """SIGTERM and SIGINT stop ``tactile-force run`` cleanly: the first one ends the run after
+    the readings of the step in progress are written (every sensor is marked done, so
+    :meth:`ForceRuntime.run` returns), then the outputs are closed as at a normal end (an MCAP
+    log gets its summary and footer). A second signal stops at once (KeyboardInterrupt; the
+    outputs are still closed). Installed only in the main thread; the old handlers come back
+    on exit."""
+
+    def __init__(self, runtime) -> None:
+        self.runtime = runtime
+        self.signal: signal.Signals | None = None
+        self._old: dict[int, object] = {}
+
+    def __enter__(self) -> SignalStop:
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGTERM, signal.SIGINT):
+                self._old[sig] = signal.signal(sig, self._handle)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for sig, old in self._old.items():
+            signal.signal(sig, old)  # type: ignore[arg-type]
+        self._old.clear()
+
+    def _handle(self, signum: int, frame) -> None:
+        if self.signal is not None:
+            raise KeyboardInterrupt
+        self.signal = signal.Signals(signum)
+
+    def check(self) -> None:
+        """Called after each reading: on a pending signal, mark every sensor done."""
+        if self.signal is not None:
+            for s in self.runtime.sensors:
+                s.alive = False
+
+
 def _run_scene(args: argparse.Namespace):
     """The validated Scene for ``run``'s flags (from --scene, or built from --source)."""
     from .scene import check_scene, load_scene, scene_from_flags
 
-    given = [f"--{k.replace('_', '-')}" for k in ("bundle", "background", "fps", "ros2")
-             if getattr(args, k) is not None] + (["--out"] if args.out else []) \
-        + (["--mcap-frames"] if getattr(args, "mcap_frames", False) else [])
+    given = [f"--{k.replace('_', '-')}" for k in ("bundle", "background", "fps", "ros2", "depth_mapping")
+             if getattr(args, k, None) is not None] + (["--out"] if args.out else []) \
+        + (["--mcap-frames"] if getattr(args, "mcap_frames", False) else []) \
+        + (["--force"] if getattr(args, "force", False) else [])
     if args.scene and args.source:
         raise SceneError("give --scene FILE or --source SRC, not both")
     if args.scene:
@@ -193,12 +237,46 @@ def _run_scene(args: argparse.Namespace):
         return load_scene(args.scene)
     if not args.source:
         raise SceneError("give --scene FILE, or --source SRC [--bundle B] (see tactile-force run --help)")
+    from .output_guard import OutputKind, check_input, check_output
+
+    for flag in ("source", "bundle", "background", "depth_mapping"):
+        if getattr(args, flag, None) is not None:
+            check_input(getattr(args, flag), f"--{flag.replace('_', '-')}")
+    inputs = [(f"--{k.replace('_', '-')}", getattr(args, k, None)) for k in ("source", "bundle", "background",
+                                                                             "depth_mapping")]
+    for out in args.out:
+        check_output(out, [(f, p) for f, p in inputs if p not in (None, "default")],
+                     force=getattr(args, "force", False), kind=OutputKind.FILE)
     scene = scene_from_flags(args.source, bundle=args.bundle or "default", background=args.background,
                              outputs=args.out, ros2=args.ros2, name=args.name, fps=args.fps,
                              mcap_frames=getattr(args, "mcap_frames", False))
+    if getattr(args, "depth_mapping", None) is not None:
+        scene.depth["mapping"] = str(Path(args.depth_mapping).expanduser().absolute())
     if scene.sensors[0].kind.live:
         scene.outputs[0].live = True
-    return check_scene(scene)
+    check_scene(scene)
+    _check_depth_mapping(scene)
+    return scene
+
+
+def _check_depth_mapping(scene) -> None:
+    """SceneError naming --depth-mapping when a depth bundle run from flags has no mapping
+    (neither recorded in its manifest nor given)."""
+    from .bundle import load_bundle
+    from .errors import BundleError
+
+    if "mapping" in scene.depth:
+        return
+    for b in scene.bundles:
+        try:
+            m = load_bundle(b).manifest
+        except BundleError:
+            continue  # the runtime reports it
+        if m.needs_depth and (m.depth is None or m.depth.mapping is None):
+            variant = getattr(m.variant, "value", m.variant)
+            raise SceneError(f"bundle {b}: a depth bundle ({variant}) whose manifest records no colour->normal "
+                             "mapping; pass --depth-mapping FILE.npz (the paper MLP or a 'tactile-force "
+                             "calibrate-depth' result), or use a scene file with [depth] mapping = FILE")
 
 
 def main_run(args: argparse.Namespace) -> int:
@@ -219,16 +297,27 @@ def main_run(args: argparse.Namespace) -> int:
     status = LearningStatus()
     readings: list[ForceReading] = []
     limit = args.max_frames if args.max_frames is not None else (scene.max_frames or None)
+    stop = SignalStop(rt)
+
+    def on_reading(r: ForceReading) -> None:
+        if r.truth_n is not None:
+            readings.append(r)
+        stop.check()
+
     try:
-        stats = rt.run([*built.sinks, status], max_frames=limit,
-                       on_reading=lambda r: readings.append(r) if r.truth_n is not None else None)
+        with stop:
+            stats = rt.run([*built.sinks, status], max_frames=limit, on_reading=on_reading)
     finally:
         status.close()
-        built.close()
+        built.close()  # closes every output: an MCAP log gets its summary and footer
     print("\n".join(_summary_lines(stats, rt) + truth_lines(readings)), file=sys.stderr)
     if readings and (plot := replay_plot_path(args.out, scene)) is not None:
         _plot(readings, plot)
         print(f"wrote {plot} (force and truth against time)", file=sys.stderr)
+    if stop.signal is not None:
+        print(f"run stopped by {stop.signal.name} after {stats.readings} readings; outputs closed", file=sys.stderr)
+        if stop.signal == signal.SIGINT:
+            return 130
     if stats.processed == 0:
         why = "; ".join(f"sensor '{s.name}': {s.source.stats.frames} frames read, {s.source.stats.corrupt} corrupt"
                         + (f", {s.error}" if s.error else "") for s in rt.sensors)
@@ -344,6 +433,8 @@ def configure_demo(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=0, help="random seed of the virtual DIGIT")
     p.add_argument("--bundle", default="default", help="model bundle (default: the embedded default model)")
     p.add_argument("--threads", type=positive_int, default=1, help="ONNX Runtime intra-op threads (>= 1)")
+    p.add_argument("--force", action="store_true",
+                   help="write into an --out folder that holds other files than a previous demo's")
 
 
 def main_demo(args: argparse.Namespace) -> int:
@@ -352,9 +443,15 @@ def main_demo(args: argparse.Namespace) -> int:
     bundle = default_bundle_path() if args.bundle == "default" else Path(args.bundle)
     if not (bundle / "model.json").is_file():
         raise SceneError(f"--bundle {bundle}: not a bundle folder (expected model.json in it)")
+    from .output_guard import OutputKind, check_output
+
     out = Path(args.out).absolute()
     if out.exists() and not out.is_dir():
         raise SceneError(f"--out {out}: is a file; expected an output folder")
+    # a previous demo's folder is rewritten; a folder of other files only with --force; never the bundle
+    ours = out.is_dir() and all(p.name in (PLOT_NAME, "readings.csv", "summary.json") for p in out.iterdir())
+    check_output(out, [("--bundle", bundle)], force=getattr(args, "force", False), kind=OutputKind.FOLDER,
+                 allow_existing=ours)
     if problem := output_problem(out / "summary.json"):
         raise SceneError(f"--out {out}: {problem}")
     try:

@@ -31,6 +31,52 @@ from .labels import LabelError, check_force, read_force_file, read_meta
 __all__ = ["AuthorsDataset", "AuthorsDatasetWriter", "LabelError", "Sample", "read_force_file", "read_image"]
 
 _IMG_RE = re.compile(r"^(\d+)\.png$")
+#: Image suffixes that are not the layout's PNG: such a file in images/ is refused, never skipped.
+_OTHER_IMAGE_SUFFIXES = (".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp", ".gif", ".ppm", ".pgm", ".png")
+
+
+def _image_ids(img_dir: Path) -> dict[int, Path]:
+    """Sample number -> image file of an ``images/`` folder. DatasetError naming the files
+    when two names map to one number (``01500.png`` beside ``1500.png``) or an image file is
+    not named N.png (``7.jpg``, ``7.PNG``, ``7 (copy).png``): it would be skipped silently.
+    Hidden files (a writer's ``.N.png.tmp``) and non-image files are ignored."""
+    from .output_guard import check_input
+
+    out: dict[int, Path] = {}
+    for p in sorted(img_dir.iterdir()):
+        if p.name.startswith("."):
+            continue
+        m = _IMG_RE.match(p.name)
+        if m is None:
+            if p.suffix.lower() in _OTHER_IMAGE_SUFFIXES:
+                raise DatasetError(f"{p}: not named N.png; the authors' layout holds PNG frames named by their sample "
+                                   f"number (images/N.png with forces/force_N.txt): convert or rename it, or move it "
+                                   "out of the folder (it would be skipped)")
+            continue
+        check_input(p, "frame", "a PNG file")
+        n = int(m.group(1))
+        if n in out:
+            raise DatasetError(f"{out[n]} and {p}: both are sample {n} (one label forces/force_{n}.txt for two "
+                               "frames); expected one image per sample number: remove or renumber one")
+        out[n] = p
+    return out
+
+
+def duplicate_frames(frames: dict[str, np.ndarray]) -> list[tuple[str, str]]:
+    """Pairs (first, later) of names whose frames hold the same pixels (same shape, dtype and
+    bytes; compared by SHA-256), in the order of ``frames``."""
+    import hashlib
+
+    seen: dict[bytes, str] = {}
+    out = []
+    for name, frame in frames.items():
+        a = np.ascontiguousarray(frame)
+        key = hashlib.sha256(f"{a.shape}{a.dtype}".encode() + a.tobytes()).digest()
+        if key in seen:
+            out.append((seen[key], name))
+        else:
+            seen[key] = name
+    return out
 
 
 @dataclass(slots=True)
@@ -75,10 +121,10 @@ class AuthorsDataset:
         if not img_dir.is_dir():
             raise DatasetError(f"{self.root}: no 'images/' folder; "
                                "expected the layout images/N.png, forces/force_N.txt")
-        ids = sorted(int(m.group(1)) for p in img_dir.iterdir() if (m := _IMG_RE.match(p.name)))
-        if not ids:
+        self._images = _image_ids(img_dir)
+        if not self._images:
             raise DatasetError(f"{img_dir}: no images named N.png")
-        self.ids: list[int] = ids
+        self.ids: list[int] = sorted(self._images)
         self.require_depth = require_depth
         self.meta: dict[int, dict] = read_meta(self.root / "meta.jsonl")
 
@@ -86,7 +132,8 @@ class AuthorsDataset:
         return len(self.ids)
 
     def image_path(self, n: int) -> Path:
-        return self.root / "images" / f"{n}.png"
+        """The image file of sample ``n`` (``images/N.png``, as named on disk)."""
+        return self._images.get(n, self.root / "images" / f"{n}.png")
 
     def depth_path(self, n: int) -> Path:
         return self.root / "filt_img_depth" / f"depth_img_{n}.png"
@@ -96,6 +143,16 @@ class AuthorsDataset:
 
     def force(self, n: int) -> float:
         return read_force_file(self.force_path(n))
+
+    def check_unique(self, samples: list[Sample]) -> None:
+        """DatasetError naming both files when two of ``samples`` hold the same frame (a copied
+        press would count twice, e.g. in a leave-one-out error that then reads near zero)."""
+        dups = duplicate_frames({str(self.image_path(s.id)): s.frame for s in samples})
+        if dups:
+            a, b = dups[0]
+            more = f" (and {len(dups) - 1} more duplicate(s))" if len(dups) > 1 else ""
+            raise DatasetError(f"{a} and {b}: the same frame twice{more}; expected each press once (remove the "
+                               "copies: a repeated press makes the error estimates too good)")
 
     def forces(self) -> np.ndarray:
         """All forces in N, in id order."""

@@ -5,10 +5,17 @@ Every reader of the authors' layout (the dataset reader, the replay source, quan
 the same way everywhere:
 
 * the file is read as bytes and decoded as UTF-8 (a BOM is allowed);
-* its first non-blank line starts with a plain decimal number (``1.08``, ``2e-3``,
-  ``+4``; no ``nan``, ``inf``, ``1_000`` or hex), optionally followed by a comma or by
-  more columns, and further lines (the authors' files hold 10 floats, one a line);
+* its first non-blank line starts with a plain decimal number with a decimal *point*
+  (``1.08``, ``2e-3``, ``+4``; no ``nan``, ``inf``, ``1_000`` or hex), optionally followed
+  by more numbers separated by white space, a comma or a semicolon, and further lines (the
+  authors' files hold 10 floats, one a line);
+* a decimal comma (``1,08``: digits, a comma, digits, as the first field) and a unit
+  (``1.08 N``, ``1.08N``, ``108 g``) are errors naming the file: the number is always in
+  newtons, written alone;
 * the number is a normal force in newtons with ``0 <= F <= MAX_FORCE_N``.
+
+A labelled set whose forces look like another unit (:func:`unit_problem`: most of them
+above what a gel measures, or all below 1 N) is warned about where the set is read.
 
 0 N is allowed (no-contact frames). Negative forces and forces above ``MAX_FORCE_N``
 (200 N: ten times the paper's 0-20 N range and 4.5 times the largest real grasp in the
@@ -29,6 +36,8 @@ from .errors import DatasetError
 MAX_FORCE_N = 200.0
 
 _NUMBER = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?")
+_DECIMAL_COMMA = re.compile(r"[+-]?\d+,\d")
+_UNIT = re.compile(r"(?i)(?:k?n|newtons?|m?n|k?g|gf|kgf|lbf?|lbs|oz)")
 _EXPECTED = f"expected UTF-8 text whose first line is the normal force in N, 0..{MAX_FORCE_N:g}"
 
 
@@ -64,12 +73,61 @@ def parse_force_text(data: bytes, where: str) -> float:
     if not lines:
         raise LabelError(f"{where}: empty; {_EXPECTED}")
     first = lines[0]
-    token = re.split(r"[\s,;]+", first, maxsplit=1)[0]
+    if _DECIMAL_COMMA.match(first):
+        raise LabelError(f"{where}: first line {first[:40]!r} has a decimal comma; write the force with a decimal "
+                         f"point (e.g. 1.08); {_EXPECTED}")
+    fields = [f for f in re.split(r"\s*[,;]\s*|\s+", first) if f]
+    token = fields[0]
     if not _NUMBER.fullmatch(token):
         if token.lower().lstrip("+-") in ("nan", "inf", "infinity"):
             raise LabelError(f"{where}: force {token!r} is not finite; {_EXPECTED}")
+        m = _NUMBER.match(token)
+        if m is not None and _UNIT.fullmatch(token[m.end():]):
+            raise LabelError(f"{where}: first line {first[:40]!r} has a unit ({token[m.end():]!r}); write the force "
+                             f"in newtons as a number alone (e.g. {m.group(0)}); {_EXPECTED}")
         raise LabelError(f"{where}: first line {first[:40]!r} is not a number; {_EXPECTED}")
+    for extra in fields[1:]:
+        if not _NUMBER.fullmatch(extra):
+            what = "a unit" if _UNIT.fullmatch(extra) else "text"
+            raise LabelError(f"{where}: first line {first[:40]!r} holds {what} ({extra[:12]!r}) after the force; "
+                             f"write the force in newtons as a number alone (further columns: numbers only); "
+                             f"{_EXPECTED}")
     return check_force(float(token), where)
+
+
+#: A labelled set whose median force is above this (N) looks like another unit (warning).
+UNIT_WARN_MEDIAN_N = 30.0
+
+
+def unit_problem(forces, where: str) -> str | None:
+    """Why the labels of a set look like another unit than newtons, or None.
+
+    Parameters
+    ----------
+    forces : the set's forces, N (array-like of floats, each already valid).
+    where : the set (a folder), for the message.
+
+    Returns
+    -------
+    str or None : a warning naming the likely cause: a median above ``UNIT_WARN_MEDIAN_N``
+    (a DIGIT or GelSight gel saturates near 15-25 N; the paper's range is 0-20 N, the largest
+    real grasp in the shared data 44.5 N: ten times too large, e.g. decinewtons or a scale
+    factor), or every force below 1 N while some are above 0 (kilograms-force or 1/10 N?).
+    """
+    vals = [float(f) for f in forces]
+    if not vals:
+        return None
+    vals.sort()
+    med = vals[len(vals) // 2]
+    lo, hi = vals[0], vals[-1]
+    if med > UNIT_WARN_MEDIAN_N:
+        return (f"{where}: the labels span {lo:g} to {hi:g} N (median {med:g} N), above what a DIGIT or GelSight gel "
+                f"measures (the paper's 0-20 N): are they in another unit or scaled (e.g. x10)? Labels must be the "
+                "normal force in newtons")
+    if 0.0 < hi < 1.0:
+        return (f"{where}: every label is below 1 N ({lo:g} to {hi:g} N): are they in kilograms-force or scaled "
+                "(e.g. /10)? Labels must be the normal force in newtons (1 kgf = 9.81 N)")
+    return None
 
 
 def read_force_file(path: str | Path) -> float:
@@ -83,7 +141,11 @@ def read_force_file(path: str | Path) -> float:
     -------
     float : the normal force in N, finite, ``0 <= F <= MAX_FORCE_N``.
     """
+    from .output_guard import special_file_kind
+
     p = Path(path)
+    if (kind := special_file_kind(p)) is not None:  # reading a FIFO would block until someone writes to it
+        raise LabelError(f"{p}: is a {kind}, not a regular file; {_EXPECTED}")
     try:
         data = p.read_bytes()
     except FileNotFoundError:
@@ -133,7 +195,11 @@ def parse_meta_lines(data: bytes, where: str) -> dict[int, dict]:
 
 def read_meta(path: str | Path) -> dict[int, dict]:
     """``meta.jsonl`` records by sample id; {} when the file is absent. See :func:`parse_meta_lines`."""
+    from .output_guard import special_file_kind
+
     p = Path(path)
+    if (kind := special_file_kind(p)) is not None:
+        raise LabelError(f"{p}: is a {kind}, not a regular file; expected one JSON object per line")
     try:
         data = p.read_bytes()
     except FileNotFoundError:

@@ -9,7 +9,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from tactile_force.edge.cli_args import int_at_least, positive_int
+from tactile_force.edge.cli_args import float_in, int_at_least, positive_float, positive_int
 
 VARIANT_HELP = ("rgbmod (RGB, multi-level head), d (depth, plain ResNet-18), dmod (depth, multi-level head), "
                 "rgbmod+d (RGB and depth branches)")
@@ -57,14 +57,14 @@ def configure_export(p: argparse.ArgumentParser) -> None:
     p.add_argument("checkpoint", type=Path, help="trained weights (.pth / .pth.tar): the authors' format or ours")
     p.add_argument("--out", required=True, type=Path, help="bundle folder to create")
     p.add_argument("--variant", help=f"model variant: {VARIANT_HELP}. Required for the authors' checkpoints")
-    p.add_argument("--width", type=float,
+    p.add_argument("--width", type=positive_float,
                    help="channel width multiplier of a compact model (default 1.0 or the file's)")
     p.add_argument("--input-scale", type=_fraction,
                    help="network input scale 1/k, e.g. 1/4 -> 80 x 60 (default 1 or the file's)")
     p.add_argument("--parity-data", type=Path,
                    help="frames for the torch-vs-ONNX check: a dataset in the authors' layout (images/N.png, "
                         "filt_img_depth/, forces/) or a folder of PNGs. Default: random frames (noted in the manifest)")
-    p.add_argument("--tolerance", type=float, default=1e-4, help="parity tolerance in N (default 1e-4)")
+    p.add_argument("--tolerance", type=positive_float, default=1e-4, help="parity tolerance in N (default 1e-4)")
     p.add_argument("--opset", type=_opset, default=18,
                    help="ONNX opset, 17 up to the newest the installed onnx knows (default 18); the manifest records "
                         "the opset the graph really declares")
@@ -134,7 +134,8 @@ def configure_quantize(p: argparse.ArgumentParser) -> None:
     p.add_argument("--eval", type=Path, help="labelled frames for the error report (default: the --calib frames)")
     p.add_argument("--method", default="minmax", choices=("minmax", "entropy", "percentile"),
                    help="activation range calibration (default minmax)")
-    p.add_argument("--percentile", type=float, default=99.999, help="percentile for --method percentile")
+    p.add_argument("--percentile", type=float_in(0.0, 100.0, low_open=True), default=99.999,
+                   help="percentile for --method percentile (0 < p <= 100)")
     p.add_argument("--bins", type=int, default=2048,
                    help="histogram bins for entropy/percentile (default 2048; entropy gets slow with more)")
     p.add_argument("--per-tensor", action="store_true", help="one weight scale per tensor instead of per channel")

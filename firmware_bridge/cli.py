@@ -7,6 +7,7 @@ import json
 import sys
 from pathlib import Path
 
+from ..edge.cli_args import finite_float
 from ..edge.errors import SourceError
 from .discovery import UDEV_INSTALL_HINT, discover, udev_rules_path
 
@@ -80,7 +81,8 @@ def configure_record(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--max", type=int, default=None, help="stop after this many samples")
     parser.add_argument("--every", type=int, default=1, help="keep every n-th frame (default 1)")
     parser.add_argument("--stable-only", action="store_true", help="skip frames while the scale reports motion")
-    parser.add_argument("--min-force", type=float, default=None, help="skip frames below this reference force, N")
+    parser.add_argument("--min-force", type=finite_float, default=None,
+                        help="skip frames below this reference force, N")
     parser.add_argument("--tare", action="store_true", help="take the scale's current stable reading as zero first")
     parser.add_argument("--resolution", default="QVGA", choices=["QVGA", "VGA"])
     parser.add_argument("--fps", type=int, default=60, help="QVGA: 60 or 30; VGA: 30 or 15")

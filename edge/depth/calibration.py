@@ -75,6 +75,67 @@ def detect_press_circle(frame: np.ndarray, background: np.ndarray, min_radius_px
     return Circle(cx=float(m["m10"] / m["m00"]), cy=float(m["m01"] / m["m00"]), r=r)
 
 
+#: Median detected contact radius / ball radius (pixels) accepted by :func:`check_circle_scale`.
+#: Below 0.15 the press would be under 1.2 % of the ball radius deep (r^2 ~ 2 R d), too shallow
+#: to see; above 1.6 the contact circle is larger than the ball (detection reads real presses
+#: up to about 1.3 times the true contact radius: the gel bulges around the ball).
+CIRCLE_TO_BALL_RANGE = (0.15, 1.6)
+
+
+def check_circle_scale(circles: list[Circle], frame_shape: tuple[int, int], ball_radius_mm: float,
+                       px_per_mm: float, see: str = "") -> float:
+    """Check that contact circles fit a ball of ``ball_radius_mm`` at ``px_per_mm``.
+
+    Parameters
+    ----------
+    circles : detected (or given) contact circles, pixels.
+    frame_shape : (rows, cols) of the frames, pixels.
+    ball_radius_mm : the calibration ball's radius, mm (finite, > 0).
+    px_per_mm : image scale, pixels per mm (finite, > 0).
+    see : where the circles can be looked at (the circle image), for the message.
+
+    Returns
+    -------
+    float : the ball radius in pixels, ``ball_radius_mm * px_per_mm``.
+
+    Raises
+    ------
+    DatasetError : a radius or scale that is not a finite number > 0, a ball larger than the
+        frame, or circles whose median radius is outside :data:`CIRCLE_TO_BALL_RANGE` times
+        the ball's radius in pixels (a wrong ``--px-per-mm`` or ``--ball-radius-mm``).
+    """
+    from ..errors import DatasetError
+
+    for flag, v in (("--ball-radius-mm", ball_radius_mm), ("--px-per-mm", px_per_mm)):
+        if not (np.isfinite(v) and v > 0):
+            raise DatasetError(f"{flag} {v}: expected a finite number > 0")
+    ball_px = float(ball_radius_mm * px_per_mm)
+    rows, cols = int(frame_shape[0]), int(frame_shape[1])
+    where = f" (circles drawn in {see})" if see else ""
+    if ball_px > max(rows, cols):
+        raise DatasetError(
+            f"--ball-radius-mm {ball_radius_mm:g} at --px-per-mm {px_per_mm:g} is a ball {ball_px:.0f} px in radius, "
+            f"larger than the {rows}x{cols} frame: expected the image scale in pixels per mm of these frames "
+            f"(e.g. 19.6 for a DIGIT) and the ball's radius (not its diameter) in mm")
+    if not circles:
+        return ball_px
+    med = float(np.median([c.r for c in circles]))
+    lo, hi = CIRCLE_TO_BALL_RANGE
+    ratio = med / ball_px
+    if ratio > hi:
+        raise DatasetError(
+            f"the contact circles (median radius {med:.1f} px) are {ratio:.1f} times the ball's radius of "
+            f"{ball_px:.1f} px (--ball-radius-mm {ball_radius_mm:g} x --px-per-mm {px_per_mm:g}): a contact circle "
+            f"cannot be larger than the ball; --px-per-mm or --ball-radius-mm is too small{where}")
+    if ratio < lo:
+        raise DatasetError(
+            f"the contact circles (median radius {med:.1f} px) are only {ratio:.2f} times the ball's radius of "
+            f"{ball_px:.1f} px (--ball-radius-mm {ball_radius_mm:g} x --px-per-mm {px_per_mm:g}): presses that "
+            f"shallow are not visible; --px-per-mm or --ball-radius-mm is too large (expected circles of "
+            f"{lo:g} to {hi:g} times the ball radius){where}")
+    return ball_px
+
+
 def sphere_normals(shape: tuple[int, int], circle: Circle,
                    ball_radius_px: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Normals and heights of a ball of radius R px pressed with contact ``circle``.

@@ -14,9 +14,19 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from ..cli_args import float_in, int_at_least, positive_float
 from ..errors import DatasetError
+from ..output_guard import OutputKind, check_input, check_output
 from ..progress import progress
-from .calibration import Circle, LUTOptions, Press, detect_press_circle, evaluate_lut, fit_lut
+from .calibration import (
+    Circle,
+    LUTOptions,
+    Press,
+    check_circle_scale,
+    detect_press_circle,
+    evaluate_lut,
+    fit_lut,
+)
 from .overlay import PressRole, PressTile, circle_sheet, write_image
 
 
@@ -35,19 +45,25 @@ def overlay_path(output: str, overlay: str | None) -> Path:
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("presses", help="folder of ball-press images, or .npz (imgs, f0, touch_center, touch_radius)")
     parser.add_argument("--background", help="no-contact frame (image file); default: f0 of the .npz")
-    parser.add_argument("--ball-radius-mm", type=float, required=True, help="calibration ball radius, mm")
-    parser.add_argument("--px-per-mm", type=float, required=True, help="image scale, pixels per mm")
-    parser.add_argument("--holdout", type=float, default=0.25, help="share of presses held out for the report")
+    parser.add_argument("--ball-radius-mm", type=positive_float, required=True,
+                        help="calibration ball radius, mm (a finite number > 0)")
+    parser.add_argument("--px-per-mm", type=positive_float, required=True,
+                        help="image scale, pixels per mm (a finite number > 0); the detected contact circles are "
+                             "checked against the ball's size in pixels (radius x scale)")
+    parser.add_argument("--holdout", type=float_in(0.0, 1.0, low_open=True, high_open=True), default=0.25,
+                        help="share of presses held out for the report (0 < share < 1)")
     parser.add_argument("--detect", action="store_true", help="detect circles even when the .npz has labels")
-    parser.add_argument("--bins", type=int, default=32)
-    parser.add_argument("--bin-width", type=float, default=6.0, help="colour levels per LUT bin")
+    parser.add_argument("--bins", type=int_at_least(2), default=32, help="LUT bins per colour channel (>= 2)")
+    parser.add_argument("--bin-width", type=positive_float, default=6.0, help="colour levels per LUT bin")
     parser.add_argument("-o", "--output", required=True, help="calibration file to write (.npz)")
+    parser.add_argument("--force", action="store_true", help="replace --output (and the circle image) if they exist")
     parser.add_argument("--overlay", metavar="PATH",
                         help="image of the presses with the detected ball circles, to check them "
                              "(.png or .jpg; default: OUTPUT with the suffix _circles.png)")
 
 
 def _read(path: Path) -> np.ndarray:
+    check_input(path, "image", "an image file")
     img = cv2.imread(str(path), cv2.IMREAD_COLOR)
     if img is None:
         raise DatasetError(f"{path}: cannot decode image (empty, truncated or not an image)")
@@ -55,7 +71,7 @@ def _read(path: Path) -> np.ndarray:
 
 
 def load_presses(src: str, background: str | None) -> tuple[list[Press], np.ndarray]:
-    p = Path(src)
+    p = check_input(src, "presses", "a folder of images or an .npz file")
     bg = _read(Path(background)) if background else None
     if p.is_dir():
         files = sorted(f for f in p.iterdir() if f.suffix.lower() in (".png", ".jpg", ".jpeg"))
@@ -90,6 +106,9 @@ def load_presses(src: str, background: str | None) -> tuple[list[Press], np.ndar
 
 def main(args: argparse.Namespace) -> int:
     overlay = overlay_path(args.output, args.overlay)
+    inputs = [("presses", args.presses), ("--background", args.background)]
+    check_output(args.output, inputs, force=args.force, kind=OutputKind.FILE, flag="--output")
+    check_output(overlay, inputs, force=args.force, kind=OutputKind.FILE, flag="--overlay")
     presses, bg = load_presses(args.presses, args.background)
     ball_px = args.ball_radius_mm * args.px_per_mm
     found: list[Press] = []
@@ -117,6 +136,8 @@ def main(args: argparse.Namespace) -> int:
     if len(found) < 2:
         raise DatasetError(f"only {len(found)} presses with a circle; need at least 2 (one to fit, one to test); "
                            f"see {overlay}")
+    check_circle_scale([p.circle for p in found if p.circle is not None], bg.shape[:2], args.ball_radius_mm,
+                       args.px_per_mm, see=str(overlay))
     train = [p for i, p in enumerate(found) if i not in test_i]
     test = [p for i, p in enumerate(found) if i in test_i]
     lut = fit_lut(train, bg, ball_px, LUTOptions(bins=args.bins, bin_width=args.bin_width))

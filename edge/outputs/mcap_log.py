@@ -10,10 +10,17 @@ topics as the live ROS 2 output, so ``ros2 bag info/play`` and Foxglove open it:
 - ``/tactile/<sensor>/contact_mask/compressed``: sensor_msgs/msg/CompressedImage, PNG of
   the HxW contact mask, 255 = contact (``mask=True``)
 
-Crash-safe: the chunk in progress is closed and written out every ``flush_every``
-readings (default every reading, like the CSV/JSONL writers), so a run killed at any
-moment leaves a file whose complete chunks an MCAP reader reads (:func:`read_messages`
-with ``recover=True``); ``close()`` writes the summary and footer.
+Crash-safe: every ``flush_every`` readings (default every reading, like the CSV/JSONL
+writers) the chunk in progress is written out *followed by a provisional end* (a DataEnd
+record, a Footer without summary and the closing magic), so the file on disk is a complete
+MCAP after every reading. The next write lands after that end, and only then is the old end
+turned into a padding record (an unknown opcode, which MCAP readers skip) by one small
+write that never crosses a 4 KiB page. So after ``kill -9`` (or a crash) at any moment the
+``mcap`` library's own readers (``make_reader(f).iter_messages()``, seeking or not) read
+every reading whose flush had returned; :func:`read_messages` ``recover=True`` reads them
+too. ``close()`` writes the summary (chunk indexes, statistics) and the real footer; the
+``tactile-force run`` CLI closes it on SIGTERM and SIGINT as well. A power cut keeps what
+the operating system had written: pass ``fsync=True`` to force each flush to the disk.
 """
 
 from __future__ import annotations
@@ -22,7 +29,7 @@ import os
 import struct
 from collections.abc import Iterator
 from pathlib import Path
-from typing import IO, NamedTuple
+from typing import NamedTuple
 
 import cv2
 import numpy as np
@@ -77,6 +84,104 @@ def image_payloads(namespace: str, sensor: str, timestamp_ns: int, frame_bgr: np
     return out
 
 
+#: Opcode of the padding records that retire a provisional end (0x80-0xFF: private records,
+#: which MCAP readers skip).
+_PAD_OPCODE = 0x80
+_PAGE = 4096
+
+
+def _pad_record(size: int) -> bytes:
+    """An unknown-opcode record of exactly ``size`` bytes (>= 9): opcode, length, zeros."""
+    return struct.pack("<BQ", _PAD_OPCODE, size - 9) + bytes(size - 9)
+
+
+def _provisional_end() -> bytes:
+    """DataEnd + Footer without summary + magic: what makes a data section a complete MCAP."""
+    from mcap.data_stream import RecordBuilder
+    from mcap.records import DataEnd, Footer
+    from mcap.writer import MCAP0_MAGIC
+
+    b = RecordBuilder()
+    DataEnd(data_section_crc=0).write(b)
+    Footer(summary_start=0, summary_offset_start=0, summary_crc=0).write(b)
+    return b.end() + MCAP0_MAGIC
+
+
+def _pwrite_all(fd: int, data: bytes, offset: int) -> None:
+    view = memoryview(data)
+    while view:
+        if hasattr(os, "pwrite"):
+            n = os.pwrite(fd, view, offset)
+        else:  # pragma: no cover - Windows
+            os.lseek(fd, offset, os.SEEK_SET)
+            n = os.write(fd, view)
+        view = view[n:]
+        offset += n
+
+
+class _CommittingFile:
+    """The stream the mcap Writer writes to: bytes are held until :meth:`commit`, which puts
+    them on disk followed by a provisional end, then retires the previous end (see the
+    module docstring). ``tell()`` is the file offset the next byte will have."""
+
+    def __init__(self, path: Path, fsync: bool) -> None:
+        self._fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_TRUNC | getattr(os, "O_BINARY", 0), 0o666)
+        self._fsync = fsync
+        self._pending = bytearray()
+        self._pos = 0  # where pending[0] goes
+        self._old_end: int | None = None  # offset of the provisional end on disk
+        self._end = _provisional_end()
+
+    def write(self, data: bytes) -> int:
+        self._pending += data
+        return len(data)
+
+    def tell(self) -> int:
+        return self._pos + len(self._pending)
+
+    def flush(self) -> None:
+        self.commit()
+
+    def commit(self, final: bool = False) -> None:
+        """Write the held bytes (and, unless ``final``, a provisional end after them), then
+        retire the previous provisional end; ``final``: the Writer wrote the real end."""
+        data = bytes(self._pending)
+        if not data and not final:
+            return
+        end_at = self._pos + len(data)
+        if not final:
+            end = self._end
+            into_page = end_at % _PAGE
+            if into_page + len(end) > _PAGE:  # keep the end inside one page: retiring it is one small write
+                pad = _PAGE - into_page
+                pad += _PAGE if pad < 9 else 0
+                data += _pad_record(pad)
+                end_at += pad
+            data += end
+        _pwrite_all(self._fd, data, self._pos)
+        self._sync()
+        if self._old_end is not None:
+            _pwrite_all(self._fd, _pad_record(len(self._end)), self._old_end)
+            self._sync()
+        self._pending.clear()
+        if final:
+            self._old_end = None
+            os.ftruncate(self._fd, end_at)
+            self._pos = end_at
+        else:
+            self._old_end = end_at
+            self._pos = end_at + len(self._end)
+
+    def _sync(self) -> None:
+        if self._fsync:
+            os.fsync(self._fd)
+
+    def close(self) -> None:
+        if self._fd >= 0:
+            os.close(self._fd)
+            self._fd = -1
+
+
 class McapWriter:
     """A reading sink that writes one MCAP file in the ROS 2 profile.
 
@@ -120,9 +225,9 @@ class McapWriter:
 
         self._msgs = msgs
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._fh: IO[bytes] = open(self.path, "wb")  # held open until close()
+        self._fh = _CommittingFile(self.path, fsync)  # held open until close()
         # Chunks hold a reading or a few; compressing them gains little, and JPEG/PNG are compressed.
-        self._writer = Writer(self._fh, compression=CompressionType.NONE)
+        self._writer = Writer(self._fh, compression=CompressionType.NONE)  # type: ignore[arg-type]
         self._writer.start(profile="ros2", library="tactile-force")
         self._schemas: dict[str, int] = {}
         self._channels: dict[str, int] = {}
@@ -158,9 +263,7 @@ class McapWriter:
         self._writer.add_message(channel_id=cid, log_time=t, publish_time=t, data=data, sequence=seq)
 
     def _flush(self) -> None:
-        self._writer.flush()  # closes the chunk in progress and flushes the stream
-        if self.fsync:
-            os.fsync(self._fh.fileno())
+        self._writer.flush()  # closes the chunk in progress; the stream's flush commits it with a provisional end
         self._since_flush = 0
 
     # -- sink protocol ----------------------------------------------------------------------------
@@ -194,9 +297,7 @@ class McapWriter:
         self._closed = True
         try:
             self._writer.finish()
-            self._fh.flush()
-            if self.fsync:
-                os.fsync(self._fh.fileno())
+            self._fh.commit(final=True)
         finally:
             self._fh.close()
 

@@ -12,6 +12,8 @@ import os
 import sys
 from pathlib import Path
 
+from ..cli_args import finite_float
+
 
 def configure(parser: argparse.ArgumentParser) -> None:
     """Arguments of the synth command."""
@@ -21,10 +23,10 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--indenters", default="paper",
                         help="'paper' (the 18 paper-like indenters), 'all', or comma-separated names")
     parser.add_argument("--frames-per-grasp", type=int, default=8, help="samples sharing one pose (default 8)")
-    parser.add_argument("--edge-fraction", type=float, default=0.15, help="share of contacts near a border")
-    parser.add_argument("--below-fraction", type=float, default=0.0, help="share of samples in 0-1 N")
-    parser.add_argument("--above-fraction", type=float, default=0.0, help="share of samples in 15-20 N")
-    parser.add_argument("--no-contact-fraction", type=float, default=0.0, help="share of 0 N frames")
+    parser.add_argument("--edge-fraction", type=finite_float, default=0.15, help="share of contacts near a border")
+    parser.add_argument("--below-fraction", type=finite_float, default=0.0, help="share of samples in 0-1 N")
+    parser.add_argument("--above-fraction", type=finite_float, default=0.0, help="share of samples in 15-20 N")
+    parser.add_argument("--no-contact-fraction", type=finite_float, default=0.0, help="share of 0 N frames")
     parser.add_argument("--background", default=None, help="no-contact DIGIT frame to render on (default: shipped)")
     parser.add_argument("--normal-to-rgb-mlp", default=None,
                         help="FOTS normal->colour MLP .npz to shade with instead of the analytic LED model")

@@ -159,7 +159,8 @@ def test_vga_video_exits_2_with_a_message(tmp_path, rgb_bundle, capsys):
     (["demo", "--grasps", "0"], "argument --grasps: 0: expected an integer >= 1"),
     (["demo", "--threads", "0"], "argument --threads: 0: expected an integer >= 1"),
     (["demo", "--threads", "two"], "argument --threads: 'two' is not an integer"),
-    (["run", "--scene", "x.toml", "--max-frames", "-1"], "expected an integer >= 0"),
+    (["run", "--scene", "x.toml", "--max-frames", "-1"], "expected an integer >= 1"),
+    (["run", "--scene", "x.toml", "--max-frames", "0"], "expected an integer >= 1"),
     (["run", "--source", "virtual", "--fps", "inf"], "expected a finite number > 0"),
 ])
 def test_bad_flags_exit_2_with_a_clear_line(argv, words, capsys):
