@@ -6,6 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from tactile_force.edge.cli_args import positive_float
 from tactile_force.edge.errors import TactileForceError
 
 
@@ -19,7 +20,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                                                      "students; a rerun resumes from it), compress.json")
     parser.add_argument("--labels", default=None,
                         help="labelled frames (authors' layout): half mixed into training, half for evaluation")
-    parser.add_argument("--budget-ms", type=float, default=1.0,
+    parser.add_argument("--budget-ms", type=positive_float, default=1.0,
                         help="p99 budget of one batch-2 inference on this host, ms (default 1.0)")
     parser.add_argument("--seed", type=int, default=0, help="seed for splits, training and augmentation")
     parser.add_argument("--ladder", default=None,
@@ -51,6 +52,7 @@ def students_plot(students: list[dict], budget_ms: float, out: str) -> Path:
 
 def main(args: argparse.Namespace) -> int:
     from tactile_force.edge.errors import BundleError
+    from tactile_force.edge.output_guard import OutputKind, check_output
 
     from .checkpoint import CheckpointError
     from .compress import (
@@ -62,6 +64,10 @@ def main(args: argparse.Namespace) -> int:
     )
     from .training import Augment
 
+    # --out is compress's own folder (a rerun resumes from it); it must not be, hold or lie in an input
+    check_output(args.out, [("teacher", args.teacher), ("--labels", args.labels),
+                            ("--background", getattr(args, "background", None))]
+                 + [("--frames", f) for f in args.frames], kind=OutputKind.FOLDER, allow_existing=True)
     try:
         if args.epochs < 1 or args.max_frames < 20:
             raise CompressError("--epochs must be >= 1 and --max-frames >= 20")
