@@ -476,6 +476,13 @@ def _output(t: Any, i: int, where: str) -> OutputSpec:
                                    lambda v: bool(v) and " " not in v), wo)
     if kind == "ros2" and topic is None:
         raise _err(wo, "output 'ros2' needs 'topic' (e.g. '/tactile/force')")
+    if topic is not None:
+        from .outputs.ros2_names import ros_topic  # no DDS dependency
+
+        try:
+            topic = ros_topic(topic, "topic")
+        except SceneError as exc:
+            raise _err(wo, str(exc)) from None
     images = {k: _value(t, k, Key((bool,), False, f"true or false (log each frame's {what})"), wo)
               for k, what in (("frames", "image"), ("mask", "contact mask"))}
     for k, v in images.items():
