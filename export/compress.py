@@ -47,6 +47,7 @@ from tactile_force.edge.data_stats import DataStats, frames_data_stats
 from tactile_force.edge.dataset import AuthorsDataset
 from tactile_force.edge.errors import DatasetError, TactileForceError
 from tactile_force.edge.frames import FRAME_SHAPE
+from tactile_force.edge.interval import fit_interval
 from tactile_force.edge.manifest import ErrorFigures, ErrorReport
 from tactile_force.edge.metrics import error_stats
 
@@ -432,7 +433,11 @@ def _finish_student(sdir: Path, rung: Rung, teacher: Teacher, calib: Calibration
     sess = ort_session(int8.onnx_path.read_bytes(), threads=max(1, os.cpu_count() or 1))
     rec: dict = {"vs_teacher": _figures(run_ort(sess, val_data), val_teacher)}
     if lab_ev is not None and lab_ev.forces is not None:
-        rec["vs_labels"] = _figures(run_ort(sess, lab_ev), lab_ev.forces)
+        pred = run_ort(sess, lab_ev)
+        rec["vs_labels"] = _figures(pred, lab_ev.forces)
+        # the held-out labelled frames: the final bundle's interval is fitted on them (_write_final)
+        rec["labels_pred_n"] = [float(v) for v in pred]
+        rec["labels_truth_n"] = [float(v) for v in lab_ev.forces]
         rec["teacher_vs_labels"] = _figures(teacher.predict(lab_ev.inputs["rgb"]), lab_ev.forces)
     rec["gmacs"] = int8.manifest.architecture.gmacs
     rec["bundle"] = str(sdir / "int8")
@@ -473,6 +478,12 @@ def _write_final(dest: Path, chosen: dict, teacher: Teacher, frames_desc: str, n
         frames=vl["n"] if vl else vt["n"],
         vs_truth=ErrorFigures(**vl) if vl else None,
         vs_teacher=ErrorFigures(**vt))
+    # every reading's error bar: split conformal on the held-out labelled frames (edge/interval.py);
+    # without labels none (an interval against the teacher would not bound the true force)
+    pred, truth = chosen.get("labels_pred_n"), chosen.get("labels_truth_n")
+    m.interval = (fit_interval(pred, truth, model_sha256=src.manifest.sha256,
+                               data=f"{o.labels} (held-out half of the labelled frames, {len(pred)})")
+                  if pred and truth else None)
     m.provenance.trained_on = f"distilled from the teacher on {n_frames} unlabelled frames: {frames_desc}"
     m.provenance.teacher = {"source": teacher.source, "kind": teacher.kind, "sha256": teacher.sha256,
                             "description": teacher.description}

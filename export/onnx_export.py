@@ -16,13 +16,14 @@ import logging
 import os
 import time
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import torch
 from tactile_force.edge.bundle import Bundle, write_bundle
 from tactile_force.edge.errors import CheckFailedError, TactileForceError
+from tactile_force.edge.interval import fit_interval
 from tactile_force.edge.manifest import (
     Architecture,
     InputKind,
@@ -86,6 +87,8 @@ class ParityResult:
     frames: int
     source: str
     tolerance_n: float
+    #: ONNX Runtime's forces on the parity frames (N,), for the interval when they are labelled
+    estimates: np.ndarray | None = field(default=None, repr=False)
 
     def as_dict(self) -> dict:
         return {"max_abs_diff_n": self.max_abs_diff_n, "mean_abs_diff_n": self.mean_abs_diff_n,
@@ -180,7 +183,7 @@ def check_parity(net: ForceNet, model_bytes: bytes, data: CalibrationData, tol_n
         raise ParityError("parity check: non-finite force (NaN/inf) from torch or ONNX Runtime; "
                           "the checkpoint's weights are probably corrupted")
     diff = np.abs(got - ref)
-    res = ParityResult(float(diff.max()), float(diff.mean()), len(data), data.source, tol_n)
+    res = ParityResult(float(diff.max()), float(diff.mean()), len(data), data.source, tol_n, got)
     if res.max_abs_diff_n > tol_n:
         raise ParityError(f"parity check failed: ONNX Runtime differs from torch by up to {res.max_abs_diff_n:.3g} N "
                           f"on {res.frames} frames ({data.source}); tolerance {tol_n:g} N. No bundle written.")
@@ -301,4 +304,9 @@ def export_bundle(source: str | os.PathLike | nn.Module, dest: str | os.PathLike
                               torch=torch.__version__, exporter="torch.onnx.export (dynamo)",
                               export_seconds=round(time.perf_counter() - t0, 2)),
     )
+    if data.forces is not None and parity.estimates is not None:
+        # labelled parity frames: every reading's error bar, split conformal (edge/interval.py); they
+        # must be frames the checkpoint never trained on for the stated coverage to hold
+        manifest.interval = fit_interval(parity.estimates, data.forces, model_sha256=hashlib.sha256(onnx_bytes)
+                                         .hexdigest(), data=f"{data.source} ({len(data)} labelled parity frames)")
     return write_bundle(dest, onnx_bytes, manifest, overwrite=options.overwrite, inputs=inputs)

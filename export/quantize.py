@@ -17,6 +17,7 @@ from __future__ import annotations
 import contextlib
 import copy
 import dataclasses
+import hashlib
 import inspect
 import io
 import os
@@ -29,6 +30,7 @@ import numpy as np
 from onnxruntime.quantization import CalibrationDataReader
 from tactile_force.edge.bundle import Bundle, load_bundle, write_bundle
 from tactile_force.edge.errors import TactileForceError, require
+from tactile_force.edge.interval import fit_interval
 from tactile_force.edge.manifest import DiffFigures, ErrorFigures, ErrorReport, Precision, Quantization, SourceRef
 from tactile_force.edge.metrics import error_stats
 from tactile_force.edge.progress import progress
@@ -218,9 +220,12 @@ def _fp16(model, out_path: Path, exclude: list[str]) -> dict:
     return {"format": "float16 weights and activations", "io": "uint8 input, float32 output kept"}
 
 
-def _error_report(fp32_bytes: bytes, q_bytes: bytes, data: CalibrationData, used_for_calibration: bool) -> ErrorReport:
+def _error_report(fp32_bytes: bytes, q_bytes: bytes, data: CalibrationData, used_for_calibration: bool,
+                  keep: list | None = None) -> ErrorReport:
     ref = run_ort(ort_session(fp32_bytes, threads=2), data)
     got = run_ort(ort_session(q_bytes, threads=2), data)
+    if keep is not None:  # the quantized graph's estimates, for the interval (quantize_bundle)
+        keep.append(got)
     if not np.all(np.isfinite(got)):
         raise QuantizeError("quantized model gives non-finite forces (NaN/inf); "
                             "try --method percentile or --keep-float")
@@ -320,7 +325,17 @@ def quantize_bundle(src: Bundle | str | os.PathLike, dest: str | os.PathLike, op
         manifest.data_stats_missing = no_frames_warning(
             "quantize", "RGB calibration frames (and the source bundle has no data_stats)")
     manifest.quantization = from_json(Quantization, info, "quantization")
-    manifest.error = _error_report(fp32_bytes, q_bytes, evaluation, same) if evaluation is not None else None
+    estimates: list = []
+    manifest.error = (_error_report(fp32_bytes, q_bytes, evaluation, same, estimates)
+                      if evaluation is not None else None)
+    # Every reading's error bar (edge/interval.py): split conformal on the labelled frames the
+    # error is scored on; without labels none (the source's interval described another graph).
+    manifest.interval = None
+    if evaluation is not None and evaluation.forces is not None:
+        manifest.interval = fit_interval(estimates[0], evaluation.forces,
+                                         model_sha256=hashlib.sha256(q_bytes).hexdigest(),
+                                         data=f"{evaluation.source} ({len(evaluation)} labelled frames"
+                                              + (", also the int8 calibration frames)" if same else ")"))
     manifest.provenance = dataclasses.replace(m.provenance, quantized_from=SourceRef(bundle=m.name, sha256=m.sha256),
                                               quantize_seconds=round(time.perf_counter() - t0, 2))
     if o.background is not None and calib is not None and "rgb" in calib.inputs:

@@ -74,6 +74,9 @@ def test_interrupt_keeps_finished_students_and_a_rerun_resumes(setup, tmp_path):
     m = b.manifest
     assert m.precision.value == "int8-static" and m.variant.value == "rgbmod"
     assert m.error.vs_teacher is not None and m.error.vs_truth is not None
+    # the interval is fitted on the held-out labelled half (6 frames: too few for 0.90, so 'unknown')
+    assert m.interval is not None and m.interval.model_sha256 == m.sha256 and m.interval.n == m.error.vs_truth.n
+    assert not m.interval.known and "held-out half" in m.interval.data
     import hashlib
 
     assert m.provenance.teacher["sha256"] == hashlib.sha256(Path(setup[3]).read_bytes()).hexdigest()

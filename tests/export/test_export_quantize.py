@@ -96,6 +96,13 @@ def test_int8_error_vs_fp32_is_bounded_and_reported(compact, int8, aurova):
     assert err.vs_truth.mae_mean == pytest.approx(error_stats(got, truth).mae_mean, rel=1e-5)
     assert err.vs_truth.mae_mean < err.fp32_vs_truth.mae_mean + 0.1 * span
     assert int8.manifest.error_score() == pytest.approx(err.vs_truth.re_mean)  # the ladder's key is real
+    # every reading's error bar: split conformal on the labelled frames the error is scored on, for THIS graph
+    iv = int8.manifest.interval
+    assert iv is not None and iv.n == 11 and iv.model_sha256 == int8.manifest.sha256 and "also the int8" in iv.data
+    assert iv.known and all(lo <= y <= hi for (lo, hi, _), y in
+                            zip((iv.bounds(float(g)) for g in got), truth))  # the fit set: inside by construction
+    fp32_iv = compact.manifest.interval  # export: fitted on the labelled parity frames
+    assert fp32_iv is not None and fp32_iv.n == 11 and fp32_iv.model_sha256 == compact.manifest.sha256
 
 
 @pytest.mark.parametrize("method", ["entropy", "percentile"])
