@@ -84,13 +84,16 @@ def study(models: list[tuple[str, float, int, Path | None]], runs: int = 100) ->
         if not (fp32 / "model.json").is_file():
             source = ckpt if ckpt is not None else ForceNet(build_model("rgbmod", width).eval(), spec)
             export_bundle(source, fp32, ExportOptions(name=f"{name}-fp32", overwrite=True))
-        ref = run_ort(ort_session(fp32.joinpath("model.onnx").read_bytes(), 2), evald)
+        from tactile_force.edge import load_bundle
+
+        fed = evald.for_manifest(load_bundle(fp32).manifest)  # compact graphs read reduced frames
+        ref = run_ort(ort_session(fp32.joinpath("model.onnx").read_bytes(), 2), fed)
         for head in (False, True):
             dest = root / ("int8-float-head" if head else "int8-quantized-head")
             if not (dest / "model.json").is_file():
                 quantize_bundle(fp32, dest, QuantizeOptions(mode="int8-static", float_head_inputs=head, overwrite=True),
                                 calibration=calib, eval_data=evald)
-            got = run_ort(ort_session(dest.joinpath("model.onnx").read_bytes(), 2), evald)
+            got = run_ort(ort_session(dest.joinpath("model.onnx").read_bytes(), 2), fed)
             d = np.abs(got - ref)
             p50, p99 = _latency(dest, runs)
             rows.append([name, "float" if head else "int8 (QDQ)", float(d.max()), float(d.mean()),

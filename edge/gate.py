@@ -7,7 +7,11 @@ reaches ``on_area_frac`` of the frame and off only when it falls below ``off_are
 While there is no contact the background follows slow LED drift (``refresh_rate``).
 
 Resolution: the work runs on the frame shrunk by ``downscale`` (default 4: a 320x240 DIGIT
-frame becomes 80x60, the input size of the compact default model). The full-resolution mask
+frame becomes 80x60, the input size of the compact default model), reduced once per frame by
+the package's box average (:func:`tactile_force.edge.reduce.default_reduction`: ``area-2x-steps``
+for a power-of-two factor) into a buffer allocated once; :attr:`GateResult.reduced` is that
+image, and when a bundle's network input is reduced the same way the runtime hands it to the
+model as its input (one downscale per frame). The full-resolution mask
 (the depth stage filters its full-size depth image with it) is made only when
 :attr:`GateResult.mask` is read.
 
@@ -40,6 +44,8 @@ import numpy as np
 
 from .errors import FrameError
 from .frames import TimedFrame, check_frame
+from .manifest import FrameReduction
+from .reduce import FrameReducer, default_reduction
 
 _log = logging.getLogger(__name__)
 
@@ -165,7 +171,7 @@ class GateResult:
     """
 
     __slots__ = ("contact", "area_px", "area_frac", "saturation_seen", "background_ready", "mismatch", "invalid",
-                 "deformation", "thumb", "gain", "offset", "_small", "_k", "_exact", "_full", "_mask_ready",
+                 "deformation", "thumb", "gain", "offset", "reduced", "_small", "_k", "_exact", "_full", "_mask_ready",
                  "_geometry")
 
     def __init__(self, contact: bool, area_px: int, saturation_seen: bool, small: np.ndarray, full: np.ndarray,
@@ -179,6 +185,9 @@ class GateResult:
         self.invalid = ""
         self.deformation = 0.0
         self.thumb: np.ndarray | None = None
+        #: the frame reduced by the gate's :attr:`ContactGate.reduction` (H/k x W/k x 3 uint8, a
+        #: buffer the gate reuses: the image the model reads when its reduction is the same)
+        self.reduced: np.ndarray | None = None
         self.gain: tuple[float, float, float] = (1.0, 1.0, 1.0)
         self.offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
         self._small, self._full, self._k, self._exact = small, full, k, exact
@@ -286,6 +295,13 @@ class ContactGate:
         return self._bg is not None
 
     @property
+    def reduction(self) -> FrameReduction:
+        """How the gate reduces each frame before judging it (method and factor ``downscale``);
+        the runtime hands :attr:`GateResult.reduced` to a model whose network input is
+        reduced the same way."""
+        return default_reduction(int(self.options.downscale))
+
+    @property
     def frame_shape(self) -> tuple[int, int, int] | None:
         """H x W x 3 the gate works at, fixed by the first background."""
         return self._shape
@@ -351,6 +367,7 @@ class ContactGate:
                            background_ready=False)
             r._mask_ready = False
             r.thumb = thumb
+            r.reduced = self._small
             return r
 
         np.copyto(self._thumb_f, thumb, casting="unsafe")
@@ -428,6 +445,7 @@ class ContactGate:
         if s > 1 and not self._exact:
             r._mask_ready = True
         r.mismatch, r.invalid, r.deformation, r.thumb = mismatch, invalid, float(deformation), thumb
+        r.reduced = self._small
         r.gain = tuple(self._gain.tolist())
         r.offset = tuple(self._offset.tolist())
         return r
@@ -480,13 +498,15 @@ class ContactGate:
         global_change = self._fit_frac < o.fit_floor
         contrast = max(abs(g - 1.0) for g in gain)
         photometric = step > o.step_level or contrast > 0.5
-        suspicious = global_change or photometric or frac > 0 or self._mismatch
+        # Pixel noise: mean |frame - blurred| against the background's level. Measured on every
+        # frame: the box-averaged image the rest of the gate judges hides a noise burst.
+        noise = self._noise(work)
+        burst = noise > o.noise_factor * self._bg_noise * max(1.0, *gain) + 1.0
+        suspicious = global_change or photometric or frac > 0 or self._mismatch or burst
         if not suspicious:
             self._clear_mismatch()
             return "", ""
-        # Pixel noise: mean |frame - blurred| against the background's level.
-        noise = self._noise(work)
-        if noise > o.noise_factor * self._bg_noise * max(1.0, *gain) + 1.0:
+        if burst:
             invalid = (f"noise burst: pixel noise {noise:.1f} grey levels against {self._bg_noise:.1f} in the "
                        "background (interference, a failing cable or camera?)")
         elif noise < 0.45 * self._bg_noise * min(1.0, *gain):
@@ -615,8 +635,22 @@ class ContactGate:
         return sum(1 for s in strips if s.mean() > 0.5)
 
     def _noise(self, work: np.ndarray) -> float:
-        """Pixel-noise level of the frame just prepared: mean |shrunk frame - blurred| (grey levels)."""
-        return float(max(cv2.mean(cv2.absdiff(self._small, work))[:3]))
+        """Pixel-noise level of the frame just prepared: mean |subsampled frame - blurred| (grey
+        levels). A box average hides pixel noise (a k x k average divides it by k), so above x2
+        the level is measured on one pixel per k x k block of the full frame (as the gate did
+        before the box average), into buffers allocated once."""
+        if self._sub is None:
+            cv2.absdiff(self._small, work, dst=self._noise_d)
+        else:
+            cv2.resize(self._last_frame, (self._sub.shape[1], self._sub.shape[0]), dst=self._sub,
+                       interpolation=cv2.INTER_NEAREST)
+            b = self.options.blur
+            if b > 1:
+                cv2.GaussianBlur(self._sub, (b, b), 0, dst=self._sub_blur)
+            else:
+                np.copyto(self._sub_blur, self._sub)
+            cv2.absdiff(self._sub, self._sub_blur, dst=self._noise_d)
+        return float(max(cv2.mean(self._noise_d)[:3]))
 
     def _set_background(self, bg: np.ndarray, thumb: np.ndarray, noise: float) -> None:
         self._bg = bg
@@ -676,19 +710,26 @@ class ContactGate:
         self._kernel = (cv2.getStructuringElement(cv2.MORPH_RECT, (o.open_px, o.open_px)) if o.open_px > 1
                         else None)
         self._diag = (np.arange(3), np.arange(3))
-        # x2: INTER_LINEAR is exactly the 2x2 mean; larger factors: one pixel per block (reads a
-        # quarter of the frame's memory; the blur that follows averages neighbouring blocks).
-        self._shrink = cv2.INTER_LINEAR if s <= 2 else cv2.INTER_NEAREST
+        # The one downscale per frame: an exact box average (edge/reduce.py) when the factor
+        # divides the frame (what a compact bundle's network input is), else INTER_AREA.
+        self._reducer = FrameReducer(default_reduction(s), self._shape) if self._exact and s > 1 else None
+        # Pixel noise is judged on one pixel per block (see _noise): buffers for it above x2.
+        self._sub = np.empty((wh, ww, 3), np.uint8) if self._reducer is not None and s > 2 else None
+        self._sub_blur = np.empty((wh, ww, 3), np.uint8)
+        self._noise_d = np.empty((wh, ww, 3), np.uint8)
 
     def _prepare(self, arr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Downscale (INTER_LINEAR: the mean of the central 2x2 of each block, as fast as a
-        plain subsample; a x2 shrink is exactly the 2x2 mean) + blur into the uint8 working
-        buffer, and its thumbnail (INTER_AREA); both buffers are reused."""
+        """The frame's one downscale (an exact box average, edge/reduce.py, into ``_small``;
+        a factor that does not divide the frame: INTER_LINEAR at x2, else one pixel per block)
+        + blur into the uint8 working buffer, and its thumbnail; all buffers are reused."""
         s = int(self.options.downscale)
         src = arr
-        if s > 1:
+        if self._reducer is not None:
+            self._reducer(arr, out=self._small)
+            src = self._small
+        elif s > 1:
             cv2.resize(arr, (self._small.shape[1], self._small.shape[0]), dst=self._small,
-                       interpolation=self._shrink)
+                       interpolation=cv2.INTER_LINEAR if s <= 2 else cv2.INTER_NEAREST)
             src = self._small
         else:
             np.copyto(self._small, arr)

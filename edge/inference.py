@@ -4,6 +4,13 @@
 sequential execution, input and output buffers for batch 1..2 allocated once and bound to
 the session (IO binding: no per-call feed dict or output allocation), warm-up at load.
 ``predict(rgb (N,320,240,3) uint8, depth (N,320,240,1) uint8 | None) -> (N,) float32 N``.
+
+A compact bundle's graph starts at the network resolution (manifest format 3: each input's
+``reduction``, e.g. ``area-2x-steps`` x4 -> 80 x 60): ``predict`` reduces full-resolution
+frames itself with :mod:`.reduce` straight into the bound input buffer, and
+``predict_reduced`` takes images already reduced the same way (the runtime hands it the
+image its contact gate reduced, so each frame is shrunk once). Full-resolution bundles
+(reduction ``none``) read the frames as they are on both paths.
 """
 
 from __future__ import annotations
@@ -19,7 +26,8 @@ import numpy as np
 from .bundle import Bundle, load_bundle
 from .errors import BundleError, FrameError, ModelClosedError
 from .frames import FRAME_COLS, FRAME_ROWS, check_batch
-from .manifest import InputKind
+from .manifest import FrameReduction, InputKind, Reduction
+from .reduce import FrameReducer
 
 RGB_SHAPE = (FRAME_ROWS, FRAME_COLS, 3)
 DEPTH_SHAPE = (FRAME_ROWS, FRAME_COLS, 1)
@@ -69,9 +77,17 @@ class OnnxForceModel:
         self.rgb_name = rgb_spec.name if rgb_spec else None  # None: D / Dmod (depth only)
         self.depth_name = depth_spec.name if depth_spec else None
         self.output_name = m.output.name
-        # Allocated once; predict copies into the first N rows.
-        self._rgb = np.zeros((MAX_BATCH, *RGB_SHAPE), np.uint8) if self.rgb_name else None
-        self._depth = np.zeros((MAX_BATCH, *DEPTH_SHAPE), np.uint8) if self.depth_name else None
+        # The network input record: (rows, cols, C) the graph reads and how a frame is reduced.
+        self.rgb_shape = rgb_spec.network_shape if rgb_spec else None
+        self.depth_shape = depth_spec.network_shape if depth_spec else None
+        #: how predict reduces a full-resolution frame (the first input's; ``none``: full-res graph)
+        first = rgb_spec or depth_spec
+        self.reduction: FrameReduction = first.reduction if first is not None else FrameReduction()
+        self._rgb_reducer = FrameReducer(rgb_spec.reduction, RGB_SHAPE) if rgb_spec else None
+        self._depth_reducer = FrameReducer(depth_spec.reduction, DEPTH_SHAPE) if depth_spec else None
+        # Allocated once; predict reduces / copies into the first N rows.
+        self._rgb = np.zeros((MAX_BATCH, *self.rgb_shape), np.uint8) if self.rgb_shape else None
+        self._depth = np.zeros((MAX_BATCH, *self.depth_shape), np.uint8) if self.depth_shape else None
         self._outs = [self._checked_output(n) for n in range(1, MAX_BATCH + 1)]
         self._bindings = [self._bind(n) for n in range(1, MAX_BATCH + 1)]
         for _ in range(warmup):
@@ -143,22 +159,60 @@ class OnnxForceModel:
                                        "(or pass owns_model=False to runtimes that share a model you close yourself)")
             return self._predict(rgb, depth)
 
-    def _predict(self, rgb: np.ndarray | None, depth: np.ndarray | None) -> np.ndarray:
-        """:meth:`predict` without the lock and the closed check (the caller holds the lock)."""
-        if rgb is None and self._rgb is None and depth is not None:
-            n = check_batch(depth, "depth", DEPTH_SHAPE, MAX_BATCH).shape[0]
+    def predict_reduced(self, rgb: np.ndarray | None, depth: np.ndarray | None = None) -> np.ndarray:
+        """Forces in newtons, (N,) float32, for images already at the network resolution.
+
+        Parameters
+        ----------
+        rgb
+            (N, rows, cols, 3) uint8 BGR: frames reduced by this bundle's ``reduction``
+            (:attr:`rgb_shape`, e.g. (N, 80, 60, 3); for a full-resolution bundle the frames
+            themselves). None for D / Dmod.
+        depth
+            Depth bundles: (N, rows, cols, 1) uint8 at :attr:`depth_shape`, or full-resolution
+            (N, 320, 240, 1) depth images, which are reduced here.
+
+        Returns
+        -------
+        numpy.ndarray
+            (N,) float32 N; ``predict(frames)`` equals ``predict_reduced(reduce(frames))``.
+        """
+        with self._lock:
+            if self.session is None:
+                raise ModelClosedError(f"{self.bundle.path}: this OnnxForceModel was closed; load the bundle again "
+                                       "(or pass owns_model=False to runtimes that share a model you close yourself)")
+            return self._predict(rgb, depth, reduced=True)
+
+    def _fill(self, x: np.ndarray | None, name: str, buf: np.ndarray, reducer: FrameReducer,
+              full: tuple[int, int, int], net: tuple[int, int, int] | None, reduced: bool) -> int:
+        """Check a batch and write it into the bound buffer (reducing full-resolution images
+        once, straight into it); returns N."""
+        if reduced and net is not None and x is not None and x.ndim == 4 and x.shape[1:] == net:
+            x = check_batch(x, name, net, MAX_BATCH)
+            buf[:x.shape[0]] = x
+            return x.shape[0]
+        if reduced and name == "rgb" and net is not None and net != full:
+            check_batch(x, name, net, MAX_BATCH)  # raises: says what shape was expected
+        x = check_batch(x, name, full, MAX_BATCH)
+        if reducer.reduction.method is Reduction.NONE:
+            buf[:x.shape[0]] = x
         else:
-            rgb = check_batch(rgb, "rgb", RGB_SHAPE, MAX_BATCH)
-            n = rgb.shape[0]
-        if self._depth is not None:
+            for i in range(x.shape[0]):
+                reducer(x[i], out=buf[i])
+        return x.shape[0]
+
+    def _predict(self, rgb: np.ndarray | None, depth: np.ndarray | None, reduced: bool = False) -> np.ndarray:
+        """:meth:`predict` without the lock and the closed check (the caller holds the lock)."""
+        n = 0
+        if self._rgb is not None and self._rgb_reducer is not None:
+            n = self._fill(rgb, "rgb", self._rgb, self._rgb_reducer, RGB_SHAPE, self.rgb_shape, reduced)
+        if self._depth is not None and self._depth_reducer is not None:
             if depth is None:
                 raise FrameError(f"depth: this {self.bundle.variant} bundle needs a depth image (N,320,240,1) uint8")
-            depth = check_batch(depth, "depth", DEPTH_SHAPE, MAX_BATCH)
-            if depth.shape[0] != n:
-                raise FrameError(f"depth: batch {depth.shape[0]} but rgb batch {n}; expected one depth image per frame")
-            self._depth[:n] = depth
-        if self._rgb is not None and rgb is not None:
-            self._rgb[:n] = rgb
+            nd = self._fill(depth, "depth", self._depth, self._depth_reducer, DEPTH_SHAPE, self.depth_shape, reduced)
+            if n and nd != n:
+                raise FrameError(f"depth: batch {nd} but rgb batch {n}; expected one depth image per frame")
+            n = nd
         return self._run(n).copy()
 
 
@@ -169,9 +223,11 @@ def _dims(shape: list) -> list[int | None]:
 def check_graph_contract(bundle: Bundle, session) -> None:
     """Refuse a graph that does not fit the frame contract its manifest declares.
 
-    Every graph input must be a manifest input: uint8, (batch, 320, 240, C) with a
-    dynamic batch and C = 3 for ``rgb``, 1 for ``depth``; the output must be the manifest's
-    float32 force. Raises :class:`BundleError` naming the input and what was expected.
+    Every graph input must be a manifest input: uint8 NHWC (batch, rows, cols, C) with a
+    dynamic batch, C = 3 for ``rgb``, 1 for ``depth``, and (rows, cols) the 320 x 240 frame
+    reduced by the input's recorded ``reduction`` (80 x 60 for x4; 320 x 240 for ``none``);
+    the output must be the manifest's float32 force. Raises :class:`BundleError` naming the
+    input and what was expected.
     """
     m = bundle.manifest
     where = bundle.path
@@ -187,11 +243,15 @@ def check_graph_contract(bundle: Bundle, session) -> None:
         if gi.type != "tensor(uint8)":
             raise BundleError(f"{where}: graph input {name!r} is {gi.type}; the bundle contract is uint8")
         dims = _dims(list(gi.shape))
-        want = [FRAME_ROWS, FRAME_COLS, spec.channels]
+        rows, cols, ch = spec.network_shape
+        want = [rows, cols, ch]
         if len(dims) != 4 or dims[1:] != want:
+            red = spec.reduction
+            how = ("the full frame" if red.method is Reduction.NONE
+                   else f"the frame reduced by the manifest's {red.method.value} x{red.factor}")
             raise BundleError(f"{where}: graph input {name!r} has shape {list(gi.shape)}; the {spec.kind.value} "
-                              f"contract is (batch, {FRAME_ROWS}, {FRAME_COLS}, {spec.channels}) NHWC"
-                              + (" (it looks transposed: 240x320)" if dims[1:3] == [FRAME_COLS, FRAME_ROWS] else ""))
+                              f"contract is (batch, {rows}, {cols}, {ch}) NHWC ({how})"
+                              + (f" (it looks transposed: {cols}x{rows})" if dims[1:3] == [cols, rows] else ""))
         if dims[0] is not None and dims[0] < MAX_BATCH:
             raise BundleError(f"{where}: graph input {name!r} has a fixed batch of {dims[0]}; the runtime needs a "
                               f"dynamic batch (up to {MAX_BATCH} frames, both fingers): re-export the model")

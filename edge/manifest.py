@@ -37,7 +37,7 @@ from .frames import FRAME_COLS, FRAME_ROWS
 from .interval import ForceInterval
 from .typed_json import TypedJsonError, from_json, to_json
 
-FORMAT_VERSION = 2
+FORMAT_VERSION = 3
 
 
 class _StrEnum(str, enum.Enum):
@@ -85,6 +85,37 @@ class InputKind(_StrEnum):
     DEPTH = "depth"  # the 8-bit depth image, (N, 320, 240, 1) uint8
 
 
+class Reduction(_StrEnum):
+    """How a full-resolution frame is reduced to the network's input (edge/reduce.py)."""
+
+    NONE = "none"  # the graph takes the full-resolution frame
+    AREA = "area"  # one k x k box average (OpenCV INTER_AREA), rounded half to even
+    AREA_2X_STEPS = "area-2x-steps"  # log2(k) exact 2x2 box averages, each rounded half up
+
+
+@dataclass
+class FrameReduction:
+    """How a 320 x 240 frame becomes the network input: ``method`` and integer ``factor`` k
+    (the input is (320/k, 240/k)); ``none`` with k = 1 for full-resolution graphs."""
+
+    method: Reduction = Reduction.NONE
+    factor: int = 1
+
+    def __post_init__(self) -> None:
+        self.method = Reduction(self.method)
+
+    def check(self) -> None:
+        if isinstance(self.factor, bool) or not isinstance(self.factor, int) or self.factor < 1:
+            raise ValueError(f"reduction.factor {self.factor!r}: expected an integer >= 1")
+        if (self.method is Reduction.NONE) != (self.factor == 1):
+            raise ValueError(f"reduction {self.method.value!r} with factor {self.factor}: 'none' goes with "
+                             "factor 1 and a reduction with a factor >= 2")
+        if FRAME_ROWS % self.factor or FRAME_COLS % self.factor:
+            raise ValueError(f"reduction.factor {self.factor}: must divide the {FRAME_ROWS} x {FRAME_COLS} frame")
+        if self.method is Reduction.AREA_2X_STEPS and self.factor & (self.factor - 1):
+            raise ValueError(f"reduction 'area-2x-steps' needs a power-of-two factor, got {self.factor}")
+
+
 VARIANTS = tuple(v.value for v in Variant)
 DEPTH_VARIANTS = tuple(v.value for v in Variant if v.needs_depth)
 PRECISIONS = tuple(p.value for p in Precision)
@@ -92,7 +123,9 @@ PRECISIONS = tuple(p.value for p in Precision)
 
 @dataclass
 class InputSpec:
-    """One graph input: uint8 NHWC, -1 = the dynamic batch."""
+    """One graph input, the network input record: uint8 NHWC (batch, rows, cols, channels),
+    -1 = the dynamic batch; ``reduction`` says how a 320 x 240 frame becomes it (format 3;
+    ``none``: the graph takes the full frame)."""
 
     name: str
     kind: InputKind
@@ -101,6 +134,7 @@ class InputSpec:
     layout: str = "NHWC"
     colour_order: str = "BGR"  # 'BGR' for rgb inputs, 'GRAY' for depth
     scaling: str = "x / 255 inside the graph"
+    reduction: FrameReduction = field(default_factory=FrameReduction)
 
     def __post_init__(self) -> None:
         self.kind = InputKind(self.kind)
@@ -109,11 +143,18 @@ class InputSpec:
     def channels(self) -> int:
         return 3 if self.kind is InputKind.RGB else 1
 
+    @property
+    def network_shape(self) -> tuple[int, int, int]:
+        """(rows, cols, channels) the graph reads: the frame reduced by ``reduction.factor``."""
+        k = self.reduction.factor
+        return FRAME_ROWS // k, FRAME_COLS // k, self.channels
+
     def check(self) -> None:
-        want = [-1, FRAME_ROWS, FRAME_COLS, self.channels]
+        self.reduction.check()
+        want = [-1, *self.network_shape]
         if self.shape != want:
-            raise ValueError(f"input {self.name!r} ({self.kind.value}) has shape {self.shape}; "
-                             f"the frame contract is {want}")
+            raise ValueError(f"input {self.name!r} ({self.kind.value}) has shape {self.shape}; the frame contract "
+                             f"reduced by {self.reduction.method.value!r} x{self.reduction.factor} is {want}")
         if self.dtype != "uint8" or self.layout != "NHWC":
             raise ValueError(f"input {self.name!r}: dtype {self.dtype} layout {self.layout}; expected uint8 NHWC")
         want_order = "BGR" if self.kind is InputKind.RGB else "GRAY"
@@ -162,7 +203,10 @@ class DepthRecord:
     """How the depth images the model was trained on were made; the runtime rebuilds it.
 
     ``mapping`` is a colour->normal ``.npz`` path, or ``package:FILE`` for a file shipped in
-    ``tactile_force/edge/assets``.
+    ``tactile_force/edge/assets``. ``reduction`` with factor k > 1: the depth was made at the
+    network resolution (colour->normal and the Poisson solve on the frame reduced to
+    320/k x 240/k by that method; heights in full-resolution pixels, docs/depth.md); ``none``
+    x1 (the default, and every bundle written before the field existed): at full resolution.
     """
 
     mapping: str
@@ -171,6 +215,26 @@ class DepthRecord:
     paper_scale: float | None = None
     mapping_sha256: str = ""
     mask: str = ""
+    #: The depth grid: the frame reduced by ``reduction`` (factor k: 320/k x 240/k), where the
+    #: colour->normal mapping and the Poisson solve ran; ``none`` x1 = full resolution.
+    reduction: FrameReduction = field(default_factory=FrameReduction)
+
+    def check(self) -> None:
+        """Raise ValueError when the depth grid is not a valid reduction, or paper mode is not
+        at full resolution."""
+        self.reduction.check()
+        if self.reduction.factor > 1 and self.mode == "paper":
+            raise ValueError(f"depth.reduction x{self.reduction.factor}: paper mode runs at full resolution (none x1)")
+
+    @property
+    def downscale(self) -> int:
+        """The depth grid's reduction factor k (1: full resolution)."""
+        return self.reduction.factor
+
+    @property
+    def grid_hw(self) -> tuple[int, int]:
+        """(rows, cols) of the depth images the model reads: 320/k x 240/k."""
+        return FRAME_ROWS // self.reduction.factor, FRAME_COLS // self.reduction.factor
 
 
 @dataclass
@@ -280,7 +344,7 @@ class Provenance:
 
 @dataclass
 class Manifest:
-    """The bundle manifest (``model.json``), format 2.
+    """The bundle manifest (``model.json``), format 3.
 
     Sections left ``None`` were not measured or do not apply (``quantization`` for fp32,
     ``depth`` for RGBmod, ``force_calibration`` until ``tactile-force calibrate-force``,
@@ -341,9 +405,15 @@ class Manifest:
             raise ValueError("inputs: two inputs share a name")
         if self.precision is Precision.FP32 and self.quantization is not None:
             raise ValueError("quantization: present on an fp32 bundle")
+        if self.depth is not None:
+            self.depth.check()
+            spec = self.input(InputKind.DEPTH)
+            if spec is not None and spec.shape[1:3] != list(self.depth.grid_hw):
+                raise ValueError(f"depth: made on a {list(self.depth.grid_hw)} grid (reduction "
+                                 f"x{self.depth.downscale}) but the graph's depth input is {spec.shape[1:3]}")
 
     def to_json(self) -> str:
-        """The manifest as pretty-printed JSON text (format 2)."""
+        """The manifest as pretty-printed JSON text (the current format)."""
         return json.dumps(to_json(self), indent=2, allow_nan=False) + "\n"
 
 
@@ -355,7 +425,7 @@ def check_onnx_file_name(name: str) -> None:
 
 
 def manifest_from_json(raw: object, source: str = "model.json") -> Manifest:
-    """Validate a parsed manifest (format 1 or 2) and return it as format 2.
+    """Validate a parsed manifest (format 1, 2 or 3) and return it as format 3.
 
     Parameters
     ----------
@@ -379,8 +449,10 @@ def manifest_from_json(raw: object, source: str = "model.json") -> Manifest:
     try:
         if version == 1:
             raw = _migrate_v1(raw)
+        elif version == 2:  # full-resolution graphs: every input's reduction is 'none' (the default)
+            raw = {**raw, "format_version": FORMAT_VERSION}
         elif version != FORMAT_VERSION:
-            raise BundleError(f"{source}: format_version {version!r}; this package reads 1 and {FORMAT_VERSION}")
+            raise BundleError(f"{source}: format_version {version!r}; this package reads 1, 2 and {FORMAT_VERSION}")
         return from_json(Manifest, raw)
     except TypedJsonError as exc:
         raise BundleError(f"{source}: {exc}") from None

@@ -220,6 +220,9 @@ def depth_options_for(options: dict | None = None, manifest: Manifest | None = N
             value = getattr(recorded, key)
             if key not in options and value is not None:
                 options[key] = value
+        if recorded.reduction.factor > 1:  # depth at the network resolution (the grid the model reads)
+            options.setdefault("downscale", recorded.reduction.factor)
+            options.setdefault("reduction", recorded.reduction.method.value)
     if "mapping" not in options:
         raise SceneError("[depth] 'mapping' is required for depth bundles: the colour->normal .npz "
                          "(the paper MLP or a 'tactile-force calibrate-depth' result)")
@@ -267,6 +270,16 @@ class _Pending:
     gate_ms: float
     depth_ms: float = 0.0
     depth: np.ndarray | None = None
+    net: np.ndarray | None = None  # the gate's reduced image when the model reads it as it is
+
+
+def shares_reduction(gate: ContactGate, model: object) -> bool:
+    """True when ``model`` reads images reduced exactly as ``gate`` reduces frames (its
+    ``reduction`` equals the gate's, not ``none``) and takes them through ``predict_reduced``:
+    then the runtime hands it the gate's image and each frame is downscaled once."""
+    red = getattr(model, "reduction", None)
+    return (callable(getattr(model, "predict_reduced", None)) and getattr(model, "rgb_shape", None) is not None
+            and red is not None and red.factor > 1 and red == gate.reduction)
 
 
 @dataclass(slots=True)
@@ -406,6 +419,12 @@ class ForceRuntime:
         self._window = LatencyWindow(self.options.latency_window)
         self._rgb = np.empty((len(sensors), *FRAME_SHAPE), np.uint8)
         self._depth = np.empty((len(sensors), FRAME_SHAPE[0], FRAME_SHAPE[1], 1), np.uint8)
+        # One downscale per frame: a sensor whose gate reduces frames the way the model's
+        # network input is reduced hands the gate's reduced image to ``predict_reduced``.
+        self._shared = {s.name: shares_reduction(s.gate, model) for s in sensors}
+        net_shape = getattr(model, "rgb_shape", None)
+        self._net = (np.empty((len(sensors), *net_shape), np.uint8)
+                     if any(self._shared.values()) and net_shape is not None else None)
         use = self.options.grabbers
         self._use_grabbers = len(sensors) > 1 if use is None else bool(use)
         self._grabbers: _Grabbers | None = None
@@ -591,6 +610,8 @@ class ForceRuntime:
             out.append(self._finish(self._reading(s, tf, Flags.NO_CONTACT, 0.0, lat, detail, g.area_px), start))
             return None
         p = _Pending(s, tf, frame, g, start, lat.source_ms, lat.gate_ms)
+        if self._shared[s.name]:
+            p.net = g.reduced
         if s.depth is not None:
             res = s.depth.process(frame, g.mask)
             t3 = self.clock()
@@ -627,20 +648,34 @@ class ForceRuntime:
 
     def _infer(self, pending: list[_Pending], out: list[ForceReading]) -> None:
         n = len(pending)
+        reduced = self._net is not None and all(p.net is not None for p in pending)
         if n == 1:  # views, no copy: the model copies into its own bound input buffer
             p0 = pending[0]
-            rgb = p0.frame[None]
-            depth = p0.depth.reshape(1, *self._depth.shape[1:]) if p0.depth is not None else None
+            rgb = p0.net[None] if reduced and p0.net is not None else p0.frame[None]
+            depth = p0.depth.reshape(1, *p0.depth.shape[:2], 1) if p0.depth is not None else None
         else:
             for k, p in enumerate(pending):
-                self._rgb[k] = p.frame
-                if p.depth is not None:
-                    self._depth[k] = p.depth.reshape(self._depth.shape[1:])
-            rgb, depth = self._rgb[:n], self._depth[:n] if self.needs_depth else None
+                if reduced and self._net is not None:
+                    self._net[k] = p.net
+                else:
+                    self._rgb[k] = p.frame
+            depth = None
+            if self.needs_depth:
+                ds = [p.depth for p in pending if p.depth is not None]
+                if len(ds) == n and all(d.size == self._depth[0].size for d in ds):
+                    for k, d in enumerate(ds):
+                        self._depth[k] = d.reshape(self._depth.shape[1:])
+                    depth = self._depth[:n]
+                elif len(ds) == n:  # depth images at another size (the network resolution)
+                    depth = np.stack([d.reshape(*d.shape[:2], 1) for d in ds])
+            rgb = self._net[:n] if reduced and self._net is not None else self._rgb[:n]
         t0 = self.clock()
         error = ""
         try:
-            forces = self.model.predict(rgb, depth)
+            if reduced:
+                forces = self.model.predict_reduced(rgb, depth)  # type: ignore[attr-defined]
+            else:
+                forces = self.model.predict(rgb, depth)
         except Exception as exc:  # a backend failure must not stop the other readings
             forces, error = np.full(n, np.nan, np.float32), f"inference failed: {type(exc).__name__}: {exc}"
         inf_ms = self._ms(t0, self.clock())
@@ -679,18 +714,15 @@ class ForceRuntime:
     def interval(self) -> ForceInterval | None:
         """The bundle's interval record applied to every reading (None: every reading's
         interval is ``unknown``: the manifest has none, or it was fitted for another model)."""
-        iv = getattr(self, "_interval", False)
-        if iv is False:
-            iv = self._interval = usable_interval(getattr(self.model, "bundle", None))
-        return iv
+        if "_interval" not in self.__dict__:
+            self._interval = usable_interval(getattr(self.model, "bundle", None))
+        return self._interval
 
     def _bound(self, r: ForceReading) -> None:
         """Set the reading's force_low_n / force_high_n / interval from the bundle's table:
         no_contact -> [0, the gate-closed bound]; saturated -> open above (+inf); an unknown
         bin or no table -> NaN bounds, ``unknown``."""
-        iv = self.__dict__.get("_interval", False)
-        if iv is False:
-            iv = self.interval
+        iv = self.__dict__["_interval"] if "_interval" in self.__dict__ else self.interval
         if iv is None:
             return
         fl = int(r.flags)  # plain int tests: IntFlag operators cost ~1 us each

@@ -18,7 +18,9 @@ import numpy as np
 from tactile_force.edge.dataset import AuthorsDataset
 from tactile_force.edge.errors import DatasetError, TactileForceError
 from tactile_force.edge.frames import FRAME_SHAPE
+from tactile_force.edge.manifest import FrameReduction, Manifest, Reduction
 from tactile_force.edge.progress import progress
+from tactile_force.edge.reduce import reduce_frames
 
 from .zoo import VARIANT_INPUTS, check_variant
 
@@ -46,6 +48,23 @@ class CalibrationData:
         """Yield feed dicts of up to ``batch_size`` frames."""
         for i in range(0, len(self), batch_size):
             yield {k: v[i:i + batch_size] for k, v in self.inputs.items()}
+
+    def reduced(self, reduction: FrameReduction) -> CalibrationData:
+        """The same frames reduced to the network resolution as the runtime reduces them
+        (edge/reduce.py), for graphs that start there; forces, source and ids unchanged."""
+        if reduction.method is Reduction.NONE:
+            return self
+        return CalibrationData({k: reduce_frames(v, reduction) for k, v in self.inputs.items()}, self.forces,
+                               self.source, self.ids)
+
+    def for_manifest(self, manifest: Manifest) -> CalibrationData:
+        """The frames as the bundle's graph reads them (reduced when its inputs record a reduction)."""
+        by_name = {s.name: s.reduction for s in manifest.inputs}
+        if all(r.method is Reduction.NONE for r in by_name.values()):
+            return self
+        return CalibrationData({k: v if by_name.get(k) is None or by_name[k].method is Reduction.NONE
+                                else reduce_frames(v, by_name[k]) for k, v in self.inputs.items()},
+                               self.forces, self.source, self.ids)
 
     def subset(self, n: int) -> CalibrationData:
         """The first ``n`` frames."""

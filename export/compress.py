@@ -247,7 +247,7 @@ def load_teacher(path: str | os.PathLike) -> Teacher:
         def run_bundle(frames: np.ndarray) -> np.ndarray:
             ids = [str(i) for i in range(len(frames))]
             data = CalibrationData({b.manifest.inputs[0].name: frames}, None, "frames", ids)
-            return run_ort(session, data, batch_size=16)
+            return run_ort(session, data.for_manifest(b.manifest), batch_size=16)
 
         return Teacher(str(p), "bundle", b.manifest.sha256, f"bundle {b.name} ({b.manifest.precision.value})",
                        run_bundle)
@@ -431,9 +431,10 @@ def _finish_student(sdir: Path, rung: Rung, teacher: Teacher, calib: Calibration
     int8 = quantize_bundle(fp32, sdir / "int8", QuantizeOptions(mode="int8-static", name=f"{rung.name}-int8",
                                                                 overwrite=True), calibration=calib, eval_data=val_data)
     sess = ort_session(int8.onnx_path.read_bytes(), threads=max(1, os.cpu_count() or 1))
-    rec: dict = {"vs_teacher": _figures(run_ort(sess, val_data), val_teacher)}
+    m = int8.manifest  # compact students read frames reduced as the runtime reduces them
+    rec: dict = {"vs_teacher": _figures(run_ort(sess, val_data.for_manifest(m)), val_teacher)}
     if lab_ev is not None and lab_ev.forces is not None:
-        pred = run_ort(sess, lab_ev)
+        pred = run_ort(sess, lab_ev.for_manifest(m))
         rec["vs_labels"] = _figures(pred, lab_ev.forces)
         # the held-out labelled frames: the final bundle's interval is fitted on them (_write_final)
         rec["labels_pred_n"] = [float(v) for v in pred]

@@ -1,9 +1,12 @@
 """Checkpoint + variant -> verified fp32 ONNX bundle (preprocessing inside the graph).
 
-The graph takes raw uint8 NHWC frames (``rgb``: N x 320 x 240 x 3 BGR, ``depth``:
-N x 320 x 240 x 1) with a dynamic batch and returns ``force_n`` (N,) float32 in newtons.
+The graph takes uint8 NHWC images at the network resolution with a dynamic batch (``rgb``:
+N x 320/k x 240/k x 3 BGR, ``depth``: N x 320/k x 240/k x 1; k = 1 / input_scale; full
+frames for k = 1) and returns ``force_n`` (N,) float32 in newtons. A compact model's frames
+are reduced outside the graph, once per frame, by the runtime (edge/reduce.py; the manifest
+records the reduction in ``inputs[].reduction``), exactly as the training reduced them.
 The purely linear head is folded into one Gemm, and (by default) the BGR flip and the 1/255
-into conv1's weights, leaving Transpose (uint8) -> Cast -> AveragePool in front of conv1.
+into conv1's weights, leaving Transpose (uint8) -> Cast in front of conv1.
 Before anything is written, ONNX Runtime is compared with torch eager of the unfolded
 ForceNet (the training form) on real frames; a difference above
 ``parity_tol_n`` aborts and leaves no bundle.
@@ -26,6 +29,7 @@ from tactile_force.edge.errors import CheckFailedError, TactileForceError
 from tactile_force.edge.interval import fit_interval
 from tactile_force.edge.manifest import (
     Architecture,
+    FrameReduction,
     InputKind,
     InputSpec,
     Manifest,
@@ -41,7 +45,7 @@ from .calibration import CalibrationData, random_frames
 from .checkpoint import model_from_checkpoint
 from .graph import name_nodes
 from .macs import count_macs
-from .preprocess import ForceNet, network_hw, scale_factor
+from .preprocess import ForceNet, default_reduction, network_hw, scale_factor
 from .zoo import VARIANT_INPUTS, ModelSpec, check_variant
 
 OUTPUT_NAME = "force_n"
@@ -128,7 +132,8 @@ def to_onnx(net: ForceNet, opset: int = 18) -> bytes:
         raise TactileForceError(f"opset {opset}: need >= 17")
     names = list(net.input_names)
     wrapper = (_Single if len(names) == 1 else _Pair)(net).eval()
-    args = tuple(torch.zeros((2, 320, 240, 3 if n == "rgb" else 1), dtype=torch.uint8) for n in names)
+    rows, cols = network_hw(net.spec.input_scale) if net.network_input else (320, 240)
+    args = tuple(torch.zeros((2, rows, cols, 3 if n == "rgb" else 1), dtype=torch.uint8) for n in names)
     batch = torch.export.Dim("batch", min=1, max=4096)
     dyn = tuple({0: batch} for _ in names)
     with warnings.catch_warnings(), torch.no_grad():
@@ -175,10 +180,14 @@ def run_torch(net: ForceNet, data: CalibrationData, batch_size: int = 4) -> np.n
     return np.concatenate(out).reshape(-1)
 
 
-def check_parity(net: ForceNet, model_bytes: bytes, data: CalibrationData, tol_n: float) -> ParityResult:
-    """Compare ORT with torch eager; ParityError if max |diff| > tol_n or outputs are not finite."""
+def check_parity(net: ForceNet, model_bytes: bytes, data: CalibrationData, tol_n: float,
+                 reduction: FrameReduction | None = None) -> ParityResult:
+    """Compare ORT with torch eager (full-resolution frames); ParityError if max |diff| > tol_n or
+    outputs are not finite. ``reduction``: the graph starts at the network resolution and is fed
+    the frames reduced as the runtime reduces them."""
     ref = run_torch(net, data)
-    got = run_ort(ort_session(model_bytes, threads=max(1, min(4, os.cpu_count() or 1))), data, batch_size=3)
+    fed = data.reduced(reduction) if reduction is not None else data
+    got = run_ort(ort_session(model_bytes, threads=max(1, min(4, os.cpu_count() or 1))), fed, batch_size=3)
     if not (np.all(np.isfinite(ref)) and np.all(np.isfinite(got))):
         raise ParityError("parity check: non-finite force (NaN/inf) from torch or ONNX Runtime; "
                           "the checkpoint's weights are probably corrupted")
@@ -190,12 +199,16 @@ def check_parity(net: ForceNet, model_bytes: bytes, data: CalibrationData, tol_n
     return res
 
 
-def _input_specs(variant: str) -> list[InputSpec]:
+def _input_specs(variant: str, input_scale: float = 1.0) -> list[InputSpec]:
+    """The network input records: the frame reduced by 1/input_scale (edge/reduce.py's
+    default reduction; ``none`` at full resolution)."""
     specs = []
+    k = scale_factor(input_scale)
+    rows, cols = network_hw(input_scale)
     for n in VARIANT_INPUTS[variant]:
         rgb = n == "rgb"
-        specs.append(InputSpec(name=n, kind=InputKind(n), shape=[-1, 320, 240, 3 if rgb else 1],
-                               colour_order="BGR" if rgb else "GRAY"))
+        specs.append(InputSpec(name=n, kind=InputKind(n), shape=[-1, rows, cols, 3 if rgb else 1],
+                               colour_order="BGR" if rgb else "GRAY", reduction=default_reduction(k)))
     return specs
 
 
@@ -206,22 +219,22 @@ def output_spec() -> OutputSpec:
 def preprocessing_steps(spec: ModelSpec, folded: bool = False) -> list[str]:
     """What the graph does to the raw frames before the network, in order."""
     k = scale_factor(spec.input_scale)
+    outside = []
+    if k > 1:
+        r, c = network_hw(spec.input_scale)
+        red = default_reduction(k)
+        outside.append(f"frame 320x240 -> {r}x{c} outside the graph, once per frame: {red.method.value} x{k} "
+                       "(edge/reduce.py)")
     if folded:
-        steps = ["NHWC -> NCHW (uint8)", "cast uint8 -> float32"]
-        if k > 1:
-            r, c = network_hw(spec.input_scale)
-            steps.append(f"{k}x{k} area average (AveragePool): 320x240 -> {r}x{c}")
+        steps = [*outside, "NHWC -> NCHW (uint8)", "cast uint8 -> float32"]
         if "rgb" in VARIANT_INPUTS[spec.variant]:
             steps.append("BGR -> RGB (rgb input): folded into conv1's weights")
         steps.append("divide by 255: folded into conv1's weights")
         return steps
-    steps = ["cast uint8 -> float32", "NHWC -> NCHW"]
+    steps = [*outside, "cast uint8 -> float32", "NHWC -> NCHW"]
     if "rgb" in VARIANT_INPUTS[spec.variant]:
         steps.append("BGR -> RGB (rgb input)")
     steps.append("divide by 255")
-    if k > 1:
-        r, c = network_hw(spec.input_scale)
-        steps.append(f"{k}x{k} area average (AveragePool): 320x240 -> {r}x{c}")
     return steps
 
 
@@ -276,9 +289,11 @@ def export_bundle(source: str | os.PathLike | nn.Module, dest: str | os.PathLike
     else:
         data = random_frames(spec.variant)
     eager = ForceNet(model, spec, folded=False).eval()
-    graph_net = ForceNet(model, spec, folded=options.fold_head, fold_preprocess=options.fold_preprocess).eval()
+    k = scale_factor(spec.input_scale)
+    graph_net = ForceNet(model, spec, folded=options.fold_head, fold_preprocess=options.fold_preprocess,
+                         network_input=k > 1).eval()
     onnx_bytes = to_onnx(graph_net, options.opset)
-    parity = check_parity(eager, onnx_bytes, data, options.parity_tol_n)
+    parity = check_parity(eager, onnx_bytes, data, options.parity_tol_n, default_reduction(k) if k > 1 else None)
     import onnx
 
     macs = count_macs(onnx.load_from_string(onnx_bytes))
@@ -287,7 +302,7 @@ def export_bundle(source: str | os.PathLike | nn.Module, dest: str | os.PathLike
                                                              "note")}
     epochs = prov.get("epochs")
     manifest = Manifest(
-        variant=Variant(spec.variant), precision=Precision.FP32, inputs=_input_specs(spec.variant),
+        variant=Variant(spec.variant), precision=Precision.FP32, inputs=_input_specs(spec.variant, spec.input_scale),
         output=output_spec(), name=options.name or dest.name,
         preprocessing=preprocessing_steps(spec, options.fold_preprocess),
         architecture=Architecture(family="resnet18", width=spec.width, input_scale=spec.input_scale,

@@ -1,19 +1,25 @@
 """Raw uint8 frames -> network input, as one torch module used by training AND export.
 
-The exported ONNX graph contains exactly this module, so edge/ feeds raw frames and the
-network sees what it saw in training:
+The exported ONNX graph contains this module, so edge/ feeds raw frames and the network sees
+what it saw in training:
 
     rgb   (N, 320, 240, 3) uint8 BGR  -> (N, 3, 320/k, 240/k) float32 RGB in [0, 1]
     depth (N, 320, 240, 1) uint8      -> (N, 1, 320/k, 240/k) float32 in [0, 1]
 
-Steps: cast to float, NHWC -> NCHW, BGR -> RGB (rgb only), / 255, and for
-``input_scale = 1/k`` an exact k x k area average (AveragePool, stride k).
+Steps: for ``input_scale = 1/k`` the frame's reduction to the network resolution, exactly the
+runtime's (:func:`tactile_force.edge.reduce.default_reduction`: successive 2 x 2 box averages
+each rounded half up for a power-of-two k, else a k x k box average rounded half to even;
+the result is the same uint8 image edge/reduce.py makes), then NHWC -> NCHW, cast to float,
+BGR -> RGB (rgb only), / 255.
 
-At export, ``fold_preprocess=True`` leaves the graph only NHWC -> NCHW (on uint8), cast and
-the area average, and moves the BGR flip and the 1/255 into a copy of each input's first
-convolution (:func:`fold_input_scaling`). Both are per-channel linear maps, the average pool
-is per-channel and conv1 pads with zeros, so the network computes the same function up to
-float rounding. Training keeps the unfolded form.
+Exported graphs of compact models start at the network resolution (``network_input=True``):
+the reduction is not in the graph; the runtime reduces each frame once (the contact gate
+judges the same image) and the manifest records how (``inputs[].reduction``).
+
+At export, ``fold_preprocess=True`` leaves the graph only NHWC -> NCHW (on uint8) and the
+cast, and moves the BGR flip and the 1/255 into a copy of each input's first convolution
+(:func:`fold_input_scaling`). Both are per-channel linear maps and conv1 pads with zeros, so
+the network computes the same function up to float rounding. Training keeps the unfolded form.
 """
 
 from __future__ import annotations
@@ -23,6 +29,8 @@ import copy
 import torch
 from tactile_force.edge.errors import TactileForceError
 from tactile_force.edge.frames import FRAME_SHAPE
+from tactile_force.edge.manifest import FrameReduction, Reduction
+from tactile_force.edge.reduce import default_reduction
 from torch import nn
 
 from .zoo import INPUT_CHANNELS, VARIANT_INPUTS, ModelSpec, RGBmodD, check_variant, fold_linear_head
@@ -45,29 +53,50 @@ def network_hw(input_scale: float) -> tuple[int, int]:
     return FRAME_SHAPE[0] // k, FRAME_SHAPE[1] // k
 
 
+def reduce_nchw(x: torch.Tensor, reduction: FrameReduction) -> torch.Tensor:
+    """The runtime's frame reduction (edge/reduce.py) on a float NCHW batch of uint8 values,
+    bit for bit: ``area-2x-steps``: floor(2x2 mean + 1/2) per step; ``area``: the k x k mean
+    rounded half to even (torch.round). Exact in float32 (sums of at most 64 x 255)."""
+    k = reduction.factor
+    if reduction.method is Reduction.NONE:
+        return x
+    if reduction.method is Reduction.AREA_2X_STEPS:
+        while k > 1:
+            x = torch.floor(nn.functional.avg_pool2d(x, 2) + 0.5)
+            k //= 2
+        return x
+    return torch.round(nn.functional.avg_pool2d(x, k))
+
+
 class Preprocess(nn.Module):
     """uint8 NHWC frame batch -> float NCHW network input (see module docstring).
 
-    ``folded=True``: NHWC -> NCHW on uint8, cast, area average only; the output stays
-    BGR in 0..255, for a conv1 whose weights hold the flip and the 1/255.
+    ``folded=True``: NHWC -> NCHW on uint8 and cast only; the output stays BGR in 0..255, for
+    a conv1 whose weights hold the flip and the 1/255. ``network_input=True`` (export): the
+    input is already reduced to the network resolution (the graph starts there); otherwise a
+    full-resolution frame is reduced here exactly as the runtime reduces it.
     """
 
-    def __init__(self, input_scale: float = 1.0, kind: str = "rgb", folded: bool = False) -> None:
+    def __init__(self, input_scale: float = 1.0, kind: str = "rgb", folded: bool = False,
+                 network_input: bool = False) -> None:
         super().__init__()
         if kind not in INPUT_CHANNELS:
             raise TactileForceError(f"input kind {kind!r}; expected 'rgb' or 'depth'")
         self.kind = kind
         self.folded = folded
         self.k = scale_factor(input_scale)
-        self.pool = nn.AvgPool2d(self.k, self.k) if self.k > 1 else nn.Identity()
+        self.reduction = default_reduction(self.k)
+        self.network_input = network_input
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         x = x.permute(0, 3, 1, 2).float()  # exports as Transpose on uint8, then Cast
+        if not self.network_input:
+            x = reduce_nchw(x, self.reduction)
         if self.folded:
-            return self.pool(x)
+            return x
         if self.kind == "rgb":
             x = x.flip(1)  # BGR -> RGB
-        return self.pool(x / 255.0)
+        return x / 255.0
 
 
 def input_convs(model: nn.Module) -> dict[str, nn.Conv2d]:
@@ -114,16 +143,21 @@ class ForceNet(nn.Module):
     with is the one the exported graph runs. ``folded=True`` evaluates the head as the
     single folded linear map (what the ONNX graph holds). ``fold_preprocess=True`` (export
     only) runs a copy of ``model`` with the BGR flip and 1/255 folded into conv1 (see
-    :func:`fold_input_scaling`); ``model`` itself is left as it is.
+    :func:`fold_input_scaling`); ``model`` itself is left as it is. ``network_input=True``
+    (export of a compact model): the inputs are frames already reduced to the network
+    resolution (:func:`tactile_force.edge.reduce.default_reduction`), as the runtime feeds them.
     """
 
-    def __init__(self, model: nn.Module, spec: ModelSpec, folded: bool = False, fold_preprocess: bool = False) -> None:
+    def __init__(self, model: nn.Module, spec: ModelSpec, folded: bool = False, fold_preprocess: bool = False,
+                 network_input: bool = False) -> None:
         super().__init__()
         self.spec = ModelSpec(check_variant(spec.variant), float(spec.width), float(spec.input_scale))
         self.model = fold_input_scaling(model, self.spec.variant) if fold_preprocess else model
         self.input_names = VARIANT_INPUTS[self.spec.variant]
         self.fold_preprocess = fold_preprocess
-        self.pre = nn.ModuleDict({n: Preprocess(spec.input_scale, n, fold_preprocess) for n in self.input_names})
+        self.network_input = network_input
+        self.pre = nn.ModuleDict({n: Preprocess(spec.input_scale, n, fold_preprocess, network_input)
+                                  for n in self.input_names})
         self.folded = folded
         if folded:
             w, b = fold_linear_head(self.model)

@@ -298,7 +298,8 @@ def quantize_bundle(src: Bundle | str | os.PathLike, dest: str | os.PathLike, op
         head = head_input_nodes(model, final[-1]) if o.float_head_inputs else []
         exclude = list(dict.fromkeys(final + head + list(o.keep_float)))
         if o.mode == "int8-static":
-            info = _static(pre, out, calib, exclude, o)  # type: ignore[arg-type]
+            # the graph reads frames reduced as the runtime reduces them (manifest inputs[].reduction)
+            info = _static(pre, out, calib.for_manifest(m), exclude, o)  # type: ignore[union-attr]
         elif o.mode == "int8-dynamic":
             info = _dynamic(pre, out, exclude, o)
         else:
@@ -326,7 +327,7 @@ def quantize_bundle(src: Bundle | str | os.PathLike, dest: str | os.PathLike, op
             "quantize", "RGB calibration frames (and the source bundle has no data_stats)")
     manifest.quantization = from_json(Quantization, info, "quantization")
     estimates: list = []
-    manifest.error = (_error_report(fp32_bytes, q_bytes, evaluation, same, estimates)
+    manifest.error = (_error_report(fp32_bytes, q_bytes, evaluation.for_manifest(m), same, estimates)
                       if evaluation is not None else None)
     # Every reading's error bar (edge/interval.py): split conformal on the labelled frames the
     # error is scored on; without labels none (the source's interval described another graph).

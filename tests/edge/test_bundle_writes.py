@@ -14,6 +14,7 @@ import pytest
 from tactile_force.edge import BundleError, load_bundle
 from tactile_force.edge.bundle import stale_partials, write_bundle
 from tactile_force.edge.inference import OnnxForceModel
+from tactile_force.edge.manifest import FrameReduction
 from tactile_force.edge.scene import default_bundle_path
 
 WRITER = textwrap.dedent("""
@@ -94,6 +95,8 @@ def test_graphs_that_break_the_frame_contract_are_refused_at_load(tmp_path, shap
     b.manifest.quantization = None
     b.manifest.precision = "fp32"
     b.manifest.__post_init__()
+    # a full-resolution manifest (reduction none): the graph must take the 320x240 frame
+    b.manifest.inputs[0].shape, b.manifest.inputs[0].reduction = [-1, 320, 240, 3], FrameReduction()
     dest = write_bundle(tmp_path / "b", _graph(shape, n_inputs, elem), b.manifest).path
     with pytest.raises(BundleError, match=message):
         OnnxForceModel(dest)
