@@ -19,6 +19,7 @@ import json
 import logging
 import math
 import os
+import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -101,7 +102,8 @@ class BundleResult:
     (``total_ms``: frame arrival -> reading, what a reading's total_ms shows; ``stages_ms``:
     source, gate, depth, inference, glue), its error on labelled data (None without
     ``--data``), the error its manifest records (``manifest_re``, on the data it was made
-    with), and its verdict against the budget: PASS, OVER_BUDGET or MACHINE_BUSY."""
+    with), and its verdict against the budget: PASS, OVER_BUDGET, MACHINE_BUSY, or NO_READINGS
+    (most bench frames gave no force, e.g. the bundle fails on them: ``note`` says why)."""
 
     path: str
     name: str
@@ -174,10 +176,14 @@ def _timing(p) -> Timing:
 
 
 def overall_verdict(verdicts: Sequence[str]) -> str:
-    """PASS when all pass, OVER_BUDGET when any is over budget, else MACHINE_BUSY."""
+    """PASS when all pass; else OVER_BUDGET when any is over budget; else NO_READINGS when a
+    bundle gave no force on the bench frames; else MACHINE_BUSY."""
     if verdicts and all(v == "PASS" for v in verdicts):
         return "PASS"
-    return "OVER_BUDGET" if "OVER_BUDGET" in verdicts else "MACHINE_BUSY"
+    for v in ("OVER_BUDGET", "NO_READINGS"):
+        if v in verdicts:
+            return v
+    return "MACHINE_BUSY"
 
 
 # ----------------------------------------------------------------------------- what is measured
@@ -355,12 +361,41 @@ def bench_bundle(path: Path, pool, frames: int = 1000, threads: int = 1, budget_
 
     result, verdict, attempts = judge(once, budget_ms, repeats, pause_s, window, sleep or time.sleep)
     s = result.stages
+    verdict_name, note = verdict.name, result.note
+    opened = re.search(r"gate open on (\d+)/(\d+) frames", note)
+    if opened and int(opened.group(1)) < int(opened.group(2)) // 2:
+        # most frames gave no force: the times are not the model's; say why instead of judging them
+        verdict_name = "NO_READINGS"
+        note = f"{note}; no force on most bench frames: {_first_problem(bundle, pool, depth)}"
     stages = {k: _timing(s[k]) for k in STAGES if k in s and (k != "depth" or case.needs_depth)}
     score = m.error_score()
     return BundleResult(
         path=str(path), name=m.name, variant=str(m.variant), precision=str(m.precision), total_ms=_timing(s[JUDGED]),
-        stages_ms=stages, error=None, manifest_re=_f(score), verdict=verdict.name,
-        attempts=[Attempt(_f(a.p99_ms), _machine_state(a.machine)) for a in attempts], note=result.note)
+        stages_ms=stages, error=None, manifest_re=_f(score), verdict=verdict_name,
+        attempts=[Attempt(_f(a.p99_ms), _machine_state(a.machine)) for a in attempts], note=note)
+
+
+def _first_problem(bundle, pool, depth) -> str:
+    """Flags and detail of the first reading without a force, over a few bench frames."""
+    from tactile_force.edge.gate import ContactGate
+    from tactile_force.edge.inference import OnnxForceModel
+    from tactile_force.edge.reading import Flags
+    from tactile_force.edge.runtime import ForceRuntime, RuntimeOptions, Sensor
+
+    from .latency import MemorySource
+
+    gate = ContactGate()
+    gate.capture_background(pool.background)
+    rt = ForceRuntime([Sensor("bench", MemorySource(pool.rgb, 4), gate)], OnnxForceModel(bundle, threads=1),
+                      RuntimeOptions(deadline_ms=1e9), depth_factory=depth)
+    try:
+        while not rt.finished:
+            for r in rt.step():
+                if r.flags & (Flags.NO_CONTACT | Flags.INVALID_INPUT):
+                    return f"{'|'.join(r.flags.names())}: {r.detail}"
+    finally:
+        rt.close()
+    return "unknown"
 
 
 def run_bench(bundles: Sequence[Path], frames: int = 1000, threads: int = 1, budget_ms: float = 1.0,
@@ -409,7 +444,8 @@ def run_bench(bundles: Sequence[Path], frames: int = 1000, threads: int = 1, bud
 
 
 # ----------------------------------------------------------------------------- output
-VERDICT_TEXT = {"PASS": "PASS", "OVER_BUDGET": "over budget", "MACHINE_BUSY": "machine busy (no verdict)"}
+VERDICT_TEXT = {"PASS": "PASS", "OVER_BUDGET": "over budget", "MACHINE_BUSY": "machine busy (no verdict)",
+                "NO_READINGS": "no force on the bench frames (no verdict)"}
 
 
 def _ms(v: float | None) -> str:

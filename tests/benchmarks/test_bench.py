@@ -186,4 +186,5 @@ def test_overall_verdict():
     assert overall_verdict(["PASS", "PASS"]) == "PASS"
     assert overall_verdict(["PASS", "MACHINE_BUSY", "OVER_BUDGET"]) == "OVER_BUDGET"
     assert overall_verdict(["PASS", "MACHINE_BUSY"]) == "MACHINE_BUSY"
+    assert overall_verdict(["NO_READINGS", "MACHINE_BUSY"]) == "NO_READINGS"
     assert overall_verdict([]) == "MACHINE_BUSY"
