@@ -49,7 +49,8 @@ def test_report_json_is_the_documented_contract(tmp_path, capsys):
     assert rc in (0, 1)  # PASS, or over budget / busy on a loaded test machine
     raw = json.loads((out / REPORT_JSON).read_text())
     assert {"schema", "machine", "budget_ms", "verdict", "bundles"} <= raw.keys()
-    assert raw["budget_ms"] == 1.0 and raw["verdict"] in ("PASS", "OVER_BUDGET", "MACHINE_BUSY")
+    assert raw["budget_ms"] == 1.0 and raw["verdict"] in ("PASS", "OVER_BUDGET", "MACHINE_BUSY", "NO_READINGS")
+    assert len(raw["bundles"]) == len(shipped_bundles())
     assert {"cpu", "cores"} <= raw["machine"].keys()
     b = raw["bundles"][0]
     assert {"path", "variant", "precision", "total_ms", "stages_ms", "error", "verdict"} <= b.keys()
@@ -81,7 +82,8 @@ def test_a_wrong_report_is_refused_naming_the_field(tmp_path):
 
 def test_a_tiny_budget_exits_1_over_budget_or_busy(tmp_path):
     out = tmp_path / "b"
-    assert main(["bench", *FAST, "--budget-ms", "0.001", "--out", str(out)]) == 1
+    assert main(["bench", *FAST, "--bundle", str(default_bundle_path()), "--budget-ms", "0.001",
+                 "--out", str(out)]) == 1
     r = read_report(out / REPORT_JSON)
     assert r.verdict in ("OVER_BUDGET", "MACHINE_BUSY") and not r.passed
     assert r.bundles[0].verdict == r.verdict and len(r.bundles[0].attempts) == 1
