@@ -1,5 +1,6 @@
 """Benchmark (not a test) of the depth stage at 320 x 240 on one core, side by side with
-the DST-II port used by digit-depth / PyTouch / tactile-in-hand.
+the DST-II port used by digit-depth / PyTouch / tactile-in-hand, and at the network
+resolution (80 x 60, ``DepthOptions(downscale=4)``, the compact depth bundles).
 
     python benchmarks/bench_depth.py [--repeats 200] [--write docs/depth_benchmark.md]
 
@@ -84,6 +85,14 @@ def main() -> None:
     for name, fn, out in rows_out:
         ms = _time(fn, args.repeats)
         lines.append(f"| {name} | {ms:.2f} | {out.max() / cap.max() - 1:+.2e} | {np.abs(out - cap).max():.2e} |")
+    # the same cap on the 80 x 60 grid (heights in full-resolution px), its own discrete gradients
+    small_cap = cap.reshape(80, 4, 60, 4).mean(axis=(1, 3))
+    sgx, sgy = (g.astype(np.float32) for g in forward_gradients(small_cap))
+    s_small = PoissonSolver((80, 60), np.float32)
+    out = s_small.solve(sgx, sgy)
+    ms = _time(lambda: s_small.solve(sgx, sgy), args.repeats)
+    lines.append(f"| DST-I exact, scipy.fft, float32, 80 x 60 grid (network resolution) | {ms:.3f} | "
+                 f"{out.max() / small_cap.max() - 1:+.2e} | {np.abs(out - small_cap).max():.2e} |")
 
     # Whole stage on real frames.
     import glob
@@ -107,6 +116,11 @@ def main() -> None:
     aur_mask = (cv2.imread(str(DATA / "aurova_digit_grasp" / "filt_img_depth" / "depth_img_1516.png"), 0) > 0)
     mlp = DATA / "aurova_digit_depth_mlp.npz"
     lut_stage = DepthStage(DepthOptions(lut_path))
+    grid_stage = DepthStage(DepthOptions(lut_path, downscale=4))
+    from tactile_force.edge.reduce import default_reduction, reduce_frames
+
+    test_small = reduce_frames(test[None], default_reduction(4))[0]
+    mask_small = np.ascontiguousarray(mask[::4, ::4])
     mlp_stage = DepthStage(DepthOptions(mlp))
     paper = DepthStage(DepthOptions(mlp, mode="paper"))
     paper.set_reference([cv2.imread(str(DATA / "aurova_digit_grasp" / "images" / "1500.png"))])
@@ -115,9 +129,13 @@ def main() -> None:
         ("exact, our LUT, full-frame mask (76800 px)", lambda: lut_stage.process(test, full)),
         (f"exact, paper MLP, contact mask ({np.count_nonzero(aur_mask)} px)", lambda: mlp_stage.process(aur, aur_mask)),
         ("paper-compatible, paper MLP on all pixels", lambda: paper.process(aur, aur_mask)),
+        (f"network resolution (downscale 4): our LUT, 80x60 reduced frame + 80x60 press mask "
+         f"({np.count_nonzero(mask_small)} px) -> 80x60x1", lambda: grid_stage.process(test_small, mask_small)),
+        ("network resolution (downscale 4): full frame + full mask, reduced inside the stage",
+         lambda: grid_stage.process(test, mask)),
     ]
     lines.append("")
-    lines.append("| whole depth stage, 320 x 240 frame -> 320x240x1 uint8 | ms (median) |")
+    lines.append("| whole depth stage, 320 x 240 frame -> 320x240x1 uint8 (unless stated) | ms (median) |")
     lines.append("|---|---|")
     for name, fn in stage_rows:
         assert fn().ok

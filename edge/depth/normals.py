@@ -62,7 +62,10 @@ class PaperMLP:
             # Stored transposed so a row-major (N, in) batch multiplies without copies.
             self.w.append(np.ascontiguousarray(w.T, dtype=np.float32))
             self.b.append(b.astype(np.float32))
-        self._grid: tuple[int, int] | None = None
+        self._grid: tuple[int, int, int] | None = None
+        #: Full-resolution pixels per pixel of the frames given (k for a frame reduced k x k):
+        #: the position inputs are the block centres' full-resolution coordinates.
+        self.pitch = 1
         # Fast form, same function: fc3 and fc4 have no activation between them, so they fold
         # into one 32 -> 3 layer; fc1's position part (col/240, row/320) is a per-pixel table
         # made once per frame size, its colour part a 3 -> 32 product with 1/255 folded in.
@@ -82,14 +85,17 @@ class PaperMLP:
         return cls(arrays, str(path))
 
     def _coords(self, shape: tuple[int, int]) -> None:
-        if self._grid != shape:
+        key = (shape[0], shape[1], self.pitch)
+        if self._grid != key:
             h, w = shape
-            rows, cols = np.mgrid[0:h, 0:w]
+            rows, cols = np.mgrid[0:h, 0:w].astype(np.float64)
+            k = self.pitch
+            rows, cols = rows * k + (k - 1) / 2.0, cols * k + (k - 1) / 2.0  # block centres (full resolution)
             # The authors normalise by the DIGIT size 240 x 320 whatever the frame.
             xy = np.stack([cols.ravel() / 240.0, rows.ravel() / 320.0], axis=1)
             self._xy = xy.astype(np.float32)
             self._pos = (xy @ self._w_pos + self.b[0]).astype(np.float32)  # (H*W, 32): fc1's position part
-            self._grid = shape
+            self._grid = key
 
     def _buffers(self, n: int) -> tuple[np.ndarray, np.ndarray]:
         """Two (n, 32) and (n, 3) float32 work buffers, grown when needed and reused (fresh

@@ -9,6 +9,20 @@ Options -> create -> process -> typed result::
 
 Paper-compatible mode reproduces the authors' depth images (their D / Dmod / RGBmod+D
 checkpoints were trained on them) and needs ``set_reference(frames)`` first.
+
+Network resolution (``DepthOptions(downscale=k)``, compact depth bundles): colour -> normal
+and the exact DST-I solve run on the frame reduced to the network's input, 320/k x 240/k
+(80 x 60 for k = 4), and the depth image comes out at that size::
+
+    stage = DepthStage(DepthOptions(mapping="calib.npz", downscale=4))
+    res = stage.process(small_frame, small_mask)   # 80x60x3 uint8 BGR, 80x60 mask
+    res.depth                                      # 80x60x1 uint8
+
+A full-resolution frame or mask is reduced first (the frame with the bundle's recorded
+reduction, edge/reduce.py, the runtime's one implementation; the mask by "any pixel of the
+k x k block"), so both give the same depth when the frame was reduced the same way. Heights
+stay in full-resolution pixels (see :class:`DepthOptions`, Notes), so ``levels_per_px`` means
+the same at every ``downscale``.
 """
 
 from __future__ import annotations
@@ -19,7 +33,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import FrameError
-from ..frames import FRAME_SHAPE, check_frame, exposure_problem
+from ..frames import FRAME_COLS, FRAME_ROWS, FRAME_SHAPE, check_frame, exposure_problem
 from .calibration import NormalLUT
 from .depth_image import exact_depth_image, paper_depth_image
 from .gradients import GradientGuards, normals_to_gradients
@@ -27,6 +41,19 @@ from .normals import MappingError, PaperMLP, _load_npz, decode_paper_normals, is
 from .poisson import PoissonSolver
 
 MODES = ("exact", "paper")
+
+
+
+def frame_reducer(downscale: int, reduction: str = ""):
+    """The :class:`~tactile_force.edge.reduce.FrameReducer` of full-resolution 320x240x3 frames
+    to the depth grid: ``reduction`` a :class:`~tactile_force.edge.manifest.Reduction` value
+    ('' = the package's default for that factor, :func:`~tactile_force.edge.reduce.default_reduction`)."""
+    from ..manifest import FrameReduction, Reduction
+    from ..reduce import FrameReducer, default_reduction
+
+    red = FrameReduction(Reduction(reduction), downscale) if reduction else default_reduction(downscale)
+    red.check()
+    return FrameReducer(red, FRAME_SHAPE)
 
 
 @dataclass(slots=True)
@@ -45,7 +72,33 @@ class DepthOptions:
     1 is in docs/benchmarks/latency.md); paper_dilation_px: paper mode evaluates the MLP
     only inside the contact mask dilated by this many pixels, elsewhere the gradients are
     the reference frames' (None, the default: on every pixel, as the authors did, so their
-    checkpoints see their depth images; the masked variant's error is in latency.md).
+    checkpoints see their depth images; the masked variant's error is in latency.md);
+    downscale: the depth grid is the frame reduced by this integer factor k (1: the full
+    320 x 240 frame, paper mode and the authors' checkpoints; 4: 80 x 60, the compact
+    bundles' network input); reduction: how a full-resolution frame handed to the stage is
+    reduced to that grid, a :class:`~tactile_force.edge.manifest.Reduction` value ('area',
+    'area-2x-steps'; '' = the package default for the factor; a bundle's depth record names it).
+
+    Notes
+    -----
+    Units at ``downscale = k``: the grid pitch is k full-resolution pixels. Normals are
+    unitless, so the slope ``-n_x / n_z`` is the same at every resolution; per *grid*
+    pixel the height changes by ``k`` times that slope. The stage feeds the solver
+    ``g = k * slope`` (forward differences along the grid, ``g[i, j] = h[i, j+1] - h[i, j]``
+    with ``h`` in full-resolution pixels), so the solved height is in full-resolution
+    pixels of indentation whatever ``k`` is, and ``levels_per_px`` keeps its meaning
+    (255/48: 48 full-resolution pixels of indentation = 255). A calibration's
+    ``px_per_mm`` (full resolution) converts heights to mm unchanged: ``h_mm = h / px_per_mm``;
+    on the grid, lateral distances are ``k / px_per_mm`` mm per grid pixel. The guards
+    (``max_slope``) act on the unitless slope, before the factor k.
+
+    At k > 1 the slope of each forward difference is the mean of its two end pixels'
+    slopes, ``g[i, j] = k (s[i, j] + s[i, j+1]) / 2`` (the slope half way between them; 0
+    beyond the frame), not the slope at ``[i, j]`` alone: at a 4-pixel pitch using the
+    pixel's own slope shifts the surface by half a grid pixel (2 px) and its error on a
+    spherical cap is 3x larger (tests/depth/test_depth_network_resolution.py). Full
+    resolution (k = 1) keeps the pixel's own slope, as the authors' pipeline and every
+    depth image made before.
     """
 
     mapping: str | os.PathLike
@@ -59,6 +112,8 @@ class DepthOptions:
     solver_dtype: str = "float32"
     mapping_step: int = 1
     paper_dilation_px: int | None = None
+    downscale: int = 1
+    reduction: str = ""
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -69,6 +124,23 @@ class DepthOptions:
                                                        and self.paper_dilation_px >= 0):
             raise ValueError(f"DepthOptions.paper_dilation_px={self.paper_dilation_px!r}: expected pixels >= 0 "
                              "or None (evaluate everywhere)")
+        k = self.downscale
+        if isinstance(k, bool) or not isinstance(k, int) or k < 1 or FRAME_ROWS % k or FRAME_COLS % k:
+            raise ValueError(f"DepthOptions.downscale={k!r}: expected an integer k >= 1 dividing "
+                             f"{FRAME_ROWS} and {FRAME_COLS} (1, 2, 4, 5, 8, ...)")
+        if k > 1 and (FRAME_ROWS // k < 2 or FRAME_COLS // k < 2):
+            raise ValueError(f"DepthOptions.downscale={k}: the depth grid needs at least 2 x 2 pixels")
+        if k > 1 and self.mode == "paper":
+            raise ValueError(f"DepthOptions.downscale={k}: paper mode runs at full resolution (downscale=1), "
+                             "as the authors' checkpoints were trained")
+        if k > 1 and self.mapping_step != 1:
+            raise ValueError(f"DepthOptions.mapping_step={self.mapping_step} with downscale={k}: at the network "
+                             "resolution the mapping runs on every grid pixel (mapping_step=1)")
+        if k > 1:
+            try:
+                frame_reducer(k, self.reduction)
+            except ValueError as exc:
+                raise ValueError(f"DepthOptions.reduction={self.reduction!r} with downscale={k}: {exc}") from None
         for name in ("levels_per_px", "paper_scale", "gel_width_m", "gel_height_m"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
@@ -77,7 +149,8 @@ class DepthOptions:
 
 @dataclass(slots=True)
 class DepthResult:
-    """depth: H x W x 1 uint8 (a new array); ok: False when the input was unusable (depth
+    """depth: H x W x 1 uint8 (a new array; H x W is the stage's grid, 320 x 240 or
+    320/k x 240/k at ``downscale`` k); ok: False when the input was unusable (depth
     is then all 0); detail: why not ok, or notes; height: H x W float32 internal buffer
     (exact: px of indentation; paper: the authors' distance map, m), overwritten by the
     next call; contact_px: mask pixels; clamped_px: gradient elements that hit a guard."""
@@ -91,16 +164,24 @@ class DepthResult:
 
 
 class DepthStage:
-    """Reusable depth stage for 320 x 240 frames; buffers and tables are made once."""
+    """Reusable depth stage for 320 x 240 frames (or, at ``downscale`` k, frames already
+    reduced to 320/k x 240/k); buffers and tables are made once."""
 
     def __init__(self, options: DepthOptions) -> None:
         self.options = options
         arrays = _load_npz(options.mapping)
         self.mlp: PaperMLP | None = None
         self.lut: NormalLUT | None = None
+        k = options.downscale
+        h, w = FRAME_SHAPE[0] // k, FRAME_SHAPE[1] // k
+        #: (rows, cols, 1) of the depth images this stage makes (the depth grid).
+        self.output_shape = (h, w, 1)
+        #: (rows, cols, 3) of the reduced frames the stage reads without reducing them.
+        self.grid_frame_shape = (h, w, 3)
         if is_paper_mlp(arrays):
             self.mlp = PaperMLP(arrays, str(options.mapping))
-            self.mlp.encoded(np.zeros(FRAME_SHAPE, np.uint8), np.arange(1))  # tables made now, not on frame 1
+            self.mlp.pitch = k
+            self.mlp.encoded(np.zeros(self.grid_frame_shape, np.uint8), np.arange(1))  # tables made now
         else:
             self.lut = NormalLUT.from_arrays(arrays, str(options.mapping))
             if self.lut.background.shape != FRAME_SHAPE:
@@ -108,11 +189,12 @@ class DepthStage:
                                    f"the depth stage needs {FRAME_SHAPE} (DIGIT portrait)")
             # Guarded gradients per LUT cell, once: per frame it is a single table lookup.
             gx, gy, _ = normals_to_gradients(self.lut.flat_lut, options.guards)
-            self._glut = np.stack([gx, gy], axis=1).astype(np.float32)
-            self._bg_box = self.lut._bg_shifted.reshape(self.lut.background.shape)  # (H, W, 3) float32
+            # x k: height (full-resolution px) per grid pixel (DepthOptions, Notes)
+            self._glut = (np.stack([gx, gy], axis=1) * np.float32(k)).astype(np.float32)
+            bg = frame_reducer(k, options.reduction)(self.lut.background) if k > 1 else self.lut.background
+            self._bg_box = bg.astype(np.float32) - np.float32(self.lut.bins * self.lut.bin_width / 2.0)
         if options.mode == "paper" and self.mlp is None:
             raise MappingError(f"{options.mapping}: paper mode needs the paper MLP .npz, not a calibrate-depth LUT")
-        h, w = FRAME_SHAPE[:2]
         dtype = np.float32 if options.solver_dtype == "float32" else np.float64
         self.solver = PoissonSolver((h, w), dtype)
         self._gx = np.zeros((h, w), dtype=np.float32)
@@ -120,6 +202,7 @@ class DepthStage:
         self._height = np.zeros((h, w), dtype=dtype)
         self._depth = np.zeros((h, w, 1), dtype=np.uint8)
         self._full_mask = np.ones((h, w), dtype=bool)
+        self._reducer = frame_reducer(k, options.reduction) if k > 1 else None
         self.reference: np.ndarray | None = None
         self._ref_gx: np.ndarray | None = None  # paper mode: mean reference gradients (outside the mask)
         self._ref_gy: np.ndarray | None = None
@@ -162,14 +245,23 @@ class DepthStage:
         return n
 
     # ------------------------------------------------------------------ per frame
-    @staticmethod
-    def _frame_problem(frame) -> str | None:
+    def _frame_problem(self, frame) -> str | None:
         """Why a frame cannot be used (the shared frame contract + exposure), else None."""
         try:
-            check_frame(frame, name="frame", shape=FRAME_SHAPE)
+            shape = getattr(frame, "shape", None)
+            want = self.grid_frame_shape if shape == self.grid_frame_shape else FRAME_SHAPE
+            check_frame(frame, name="frame", shape=want)
         except FrameError as exc:
+            if self.options.downscale > 1:
+                return f"{exc} (or {self.grid_frame_shape} already reduced to the depth grid)"
             return str(exc)
         return exposure_problem(frame)
+
+    def _grid_frame(self, frame: np.ndarray) -> np.ndarray:
+        """The frame on the depth grid: unchanged at downscale 1 or when already reduced."""
+        if self._reducer is None or frame.shape == self.grid_frame_shape:
+            return frame
+        return self._reducer(frame)
 
     def _mask(self, mask) -> tuple[np.ndarray | None, str]:
         if mask is None:
@@ -177,13 +269,18 @@ class DepthStage:
         m = np.asarray(mask)
         if m.ndim == 3 and m.shape[2] == 1:
             m = m[..., 0]
-        if m.shape != FRAME_SHAPE[:2]:
-            return None, f"mask: shape {m.shape}; expected {FRAME_SHAPE[:2]} uint8 0/255 or bool"
-        if m.dtype == bool:
-            return m, ""
+        grid = self.output_shape[:2]
+        if m.shape != FRAME_SHAPE[:2] and m.shape != grid:
+            also = f" or {grid} (the depth grid)" if grid != FRAME_SHAPE[:2] else ""
+            return None, f"mask: shape {m.shape}; expected {FRAME_SHAPE[:2]}{also} uint8 0/255 or bool"
         if np.issubdtype(m.dtype, np.floating) and not np.all(np.isfinite(m)):
             return None, "mask: holds NaN/inf; expected uint8 0/255 or bool"
-        return m > 0, ""
+        if m.dtype != bool:
+            m = m > 0
+        if m.shape != grid:  # full-resolution mask on a reduced grid: a grid pixel is in when any of its block is
+            k = self.options.downscale
+            m = np.asarray(m.reshape(grid[0], k, grid[1], k).any(axis=(1, 3)))
+        return m, ""
 
     def _saturated_px(self, frame: np.ndarray, m: np.ndarray, contact_px: int) -> int:
         """Mask pixels with a channel at 255 (two SIMD passes instead of a gather of the mask)."""
@@ -196,12 +293,28 @@ class DepthStage:
         return DepthResult(depth=np.zeros_like(self._depth), ok=False, detail=detail, contact_px=contact_px)
 
     def process(self, frame: np.ndarray, mask: np.ndarray | None) -> DepthResult:
-        """frame: 320x240x3 uint8 BGR; mask: 320x240 uint8 0/255 or bool (None = full
-        frame). Never raises on bad content: returns ok=False with an all-zero depth."""
+        """Depth image of one frame.
+
+        Parameters
+        ----------
+        frame
+            320x240x3 uint8 BGR; at ``downscale`` k also the frame already reduced to the
+            depth grid, (320/k)x(240/k)x3 (a full frame is reduced with ``options.reduction``).
+        mask
+            Contact mask, 320x240 or (at k > 1) the grid's (320/k)x(240/k), uint8 0/255 or
+            bool; None = the whole frame.
+
+        Returns
+        -------
+        DepthResult
+            ``depth`` of shape :attr:`output_shape`. Never raises on bad content: ok=False
+            with an all-zero depth and the reason in ``detail``.
+        """
         try:
             problem = self._frame_problem(frame)
             if problem is not None:
                 return self._fail(f"invalid input: {problem}")
+            frame = self._grid_frame(frame)
             m, why = self._mask(mask)
             if m is None:
                 return self._fail(f"invalid input: {why}")
@@ -235,11 +348,16 @@ class DepthStage:
             assert self.mlp is not None  # a stage has a LUT or the MLP
             n = decode_paper_normals(self.mlp.encoded(frame, where))
             vx, vy, clamped = normals_to_gradients(n, self.options.guards)
+            if self.options.downscale > 1:  # height (full-resolution px) per grid pixel
+                vx *= self.options.downscale
+                vy *= self.options.downscale
         if vx is not None:
             if where is not idx:
                 vx, vy = vx[back], vy[back]
             gx.ravel()[idx] = vx
             gy.ravel()[idx] = vy
+        if self.options.downscale > 1:
+            _midpoint_slopes(gx, gy)
         h = self.solver.solve(gx, gy, out=self._height)
         if not np.isfinite(h).all():  # cannot happen with guarded gradients; kept as a guard
             return self._fail("non-finite height after integration", int(idx.size))
@@ -325,3 +443,13 @@ class DepthStage:
             return self._fail("non-finite depth after integration", contact_px)
         paper_depth_image(d, self.reference, m, self.options.paper_scale, self._depth)
         return DepthResult(self._depth.copy(), True, "", d, contact_px, 0)
+
+
+def _midpoint_slopes(gx: np.ndarray, gy: np.ndarray) -> None:
+    """In place: each forward difference takes the mean slope of its two end pixels (the
+    pixel beyond the last row / column is flat), ``g[:, j] = (g[:, j] + g[:, j+1]) / 2``
+    (DepthOptions, Notes: network resolution)."""
+    gx[:, :-1] += gx[:, 1:]
+    gy[:-1, :] += gy[1:, :]
+    gx *= 0.5
+    gy *= 0.5
