@@ -26,7 +26,7 @@ from .errors import (
 )
 from .frames import FRAME_SHAPE, FrameSource, SourceStats, TimedFrame, check_frame
 from .manifest import DEPTH_VARIANTS, PRECISIONS, VARIANTS, InputKind, Manifest, Precision, Variant
-from .reading import MAX_VALID_FORCE_N, MIN_VALID_FORCE_N, Flags, ForceReading, StageLatency
+from .reading import MAX_VALID_FORCE_N, MIN_VALID_FORCE_N, Flags, ForceReading, IntervalState, StageLatency
 
 #: name -> submodule that defines it (imported on first access)
 _LAZY = {
@@ -41,6 +41,7 @@ _LAZY = {
     "CameraSource": "sources", "ReplayFolderSource": "sources", "StreamLost": "sources", "VideoFileSource": "sources",
     "load_background": "sources", "open_v4l2": "sources",
     "ForceCalibration": "force_calibration", "DataStats": "data_stats",
+    "ForceInterval": "interval", "fit_interval": "interval",
     # labelled data and metrics
     "AuthorsDataset": "dataset", "AuthorsDatasetWriter": "dataset", "Sample": "dataset",
     "ErrorReport": "metrics", "ErrorStats": "metrics", "error_report": "metrics", "error_stats": "metrics",
@@ -70,6 +71,7 @@ def __dir__() -> list[str]:
 
 
 __all__ = [
+    "ForceInterval", "IntervalState", "fit_interval",
     "AcceleratorUnavailableError", "AuthorsDataset", "AuthorsDatasetWriter", "Bundle", "BundleError",
     "CameraSource", "ContactGate", "ContactSpec", "CsvWriter", "DEPTH_VARIANTS", "DataStats", "DatasetError",
     "DatasetOptions", "DatasetSummary", "DepthOptions", "DepthResult", "DepthStage", "ErrorReport", "ErrorStats",
@@ -92,6 +94,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time these load lazily
     from .force_calibration import ForceCalibration
     from .gate import ContactGate, GateOptions, GateResult
     from .inference import LadderChoice, OnnxForceModel, choose_bundle
+    from .interval import ForceInterval, fit_interval
     from .metrics import ErrorReport, ErrorStats, error_report, error_stats, relative_error
     from .outputs import CsvWriter, JsonlWriter, StdoutWriter
     from .runtime import ForceRuntime, RuntimeOptions, RuntimeStats, Sensor, plan_stages
