@@ -1,8 +1,10 @@
 """``tactile-force bundle show|verify``: inspect a model bundle on the robot (no torch needed).
 
-``verify`` exits 0 when the manifest validates, the sha256 matches, the graph fits the
-frame contract its manifest declares and one batch-2 run gives two finite forces; 1 when
-any check fails (the reason on one line).
+``verify`` exits 0 when no file of the bundle resolves outside it (symbolic links), the
+manifest validates, the sha256 matches, the graph fits the frame contract its manifest
+declares (inputs, variant), its op types and weights match the manifest's precision
+(:mod:`.graph_facts`, no ``onnx`` package needed) and one batch-2 run gives two finite
+forces; 1 when any check fails (the reason on one line).
 """
 
 from __future__ import annotations
@@ -16,8 +18,10 @@ def configure_bundle(p: argparse.ArgumentParser) -> None:
     p.formatter_class = argparse.RawDescriptionHelpFormatter
     p.description = ("Inspect a model bundle.\n\n"
                      "  show PATH     print the manifest summary (--json for all of it, --nodes for node names)\n"
-                     "  verify PATH   validate the manifest, check the sha256, load the graph in ONNX Runtime\n"
-                     "                against the frame contract and run it once; exit 1 if anything is off")
+                     "  verify PATH   refuse files linked from outside the bundle, validate the manifest, check\n"
+                     "                the sha256, load the graph in ONNX Runtime against the frame contract, check\n"
+                     "                its ops/weights against the manifest's precision and run it once; exit 1 if\n"
+                     "                anything is off")
     p.add_argument("action", choices=("show", "verify"))
     p.add_argument("path", type=Path, help="bundle folder, or NAME.onnx with its NAME.json")
     p.add_argument("--json", action="store_true", help="show: print the full manifest as JSON")
@@ -109,15 +113,40 @@ def _num(x: float | None) -> str:
     return "n/a" if x is None or x != x else f"{x:.3f}"
 
 
+def files_outside(path: Path) -> str:
+    """Which of a bundle's files (the folder's entries, or a loose NAME.onnx / NAME.json pair)
+    resolve outside it through a symbolic link, as one line, or ""."""
+    p = Path(path)
+    if p.is_dir():
+        root, files = p.resolve(), sorted(p.iterdir())
+    else:
+        root = p.parent.resolve()
+        files = [f for f in (p.with_suffix(".onnx"), p.with_suffix(".json")) if f.exists() or f.is_symlink()]
+    bad = []
+    for f in files:
+        target = f.resolve()
+        if f.is_symlink() and target != root and root not in target.parents:
+            bad.append(f"{f.name} -> {target}")
+    return f"file(s) resolve outside the bundle: {', '.join(bad)}" if bad else ""
+
+
 def _verify(path: Path) -> int:
     import numpy as np
 
     from .errors import BundleError
+    from .graph_facts import graph_facts, precision_problem
     from .inference import MAX_BATCH, OnnxForceModel
 
-    model = OnnxForceModel(path, warmup=0)  # validates manifest, hash and graph contract
+    outside = files_outside(path)
+    if outside:
+        raise BundleError(f"{path}: {outside}; a bundle's files must lie in its folder (copy the file in, or "
+                          "write the bundle again)")
+    model = OnnxForceModel(path, warmup=0)  # validates manifest, hash and graph contract (inputs, variant)
     try:
         b = model.bundle
+        problem = precision_problem(b.manifest.precision.value, graph_facts(b.onnx_path))
+        if problem:
+            raise BundleError(f"{b.onnx_path}: {problem}")
         rgb = np.zeros((MAX_BATCH, 320, 240, 3), np.uint8) if model.rgb_name else None
         depth = np.zeros((MAX_BATCH, 320, 240, 1), np.uint8) if model.needs_depth else None
         out = model.predict(rgb, depth)
@@ -126,6 +155,7 @@ def _verify(path: Path) -> int:
                               "expected finite forces (N), one per frame")
     finally:
         model.close()
-    print(f"ok: {b.path} ({b.variant}, {b.manifest.precision.value}) manifest valid, sha256 matches, "
-          "graph fits the frame contract, runs, output float32 N")
+    print(f"ok: {b.path} ({b.variant}, {b.manifest.precision.value}) manifest valid, sha256 matches, files inside "
+          f"the bundle, graph fits the frame contract, its ops and weights are {b.manifest.precision.value}, runs, "
+          "output float32 N")
     return 0
