@@ -191,14 +191,18 @@ def _predictor(case: LatencyCase, pool: FramePool):
 
 
 class BareOnnxRuntime:
-    """The case's graph in a bare ``InferenceSession.run`` (the runtime's session options:
-    ``threads`` intra-op threads, sequential, all graph optimisations), fed pool frame k."""
+    """The case's graph (or ``bundle``: e.g. the reference graph of issue 18) in a bare
+    ``InferenceSession.run`` (the runtime's session options: ``threads`` intra-op threads,
+    sequential, all graph optimisations), fed pool frame k; a graph that starts at the network
+    resolution is fed the pool's frames reduced beforehand (the session's time only)."""
 
-    def __init__(self, case: LatencyCase, pool: FramePool) -> None:
+    def __init__(self, case: LatencyCase, pool: FramePool, bundle: Path | None = None) -> None:
         import onnxruntime as ort
         from tactile_force.edge import load_bundle
+        from tactile_force.edge.manifest import InputKind, Reduction
+        from tactile_force.edge.reduce import reduce_frames
 
-        bundle = load_bundle(case.bundle or latency_bundle(case.config, case.precision))
+        bundle = load_bundle(bundle or case.bundle or latency_bundle(case.config, case.precision))
         so = ort.SessionOptions()
         so.intra_op_num_threads = case.threads
         so.inter_op_num_threads = 1
@@ -209,18 +213,26 @@ class BareOnnxRuntime:
         self.kinds = {s.name: s.kind for s in bundle.manifest.inputs}
         self.out = [bundle.manifest.output.name]
         self.pool = pool
+        self.inputs = {}
+        for s in bundle.manifest.inputs:
+            full = pool.depth if s.kind is InputKind.DEPTH else pool.rgb
+            if s.reduction.method is not Reduction.NONE and full.shape[1:3] != tuple(s.shape[1:3]):
+                full = reduce_frames(full, s.reduction)
+            self.inputs[s.name] = full
 
     def run(self, i: int) -> None:
         k = i % len(self.pool.rgb)
-        rgb, depth = self.pool.rgb[k:k + 1], self.pool.depth[k:k + 1]
-        self.sess.run(self.out, {n: (depth if kind == "depth" else rgb) for n, kind in self.kinds.items()})
+        self.sess.run(self.out, {n: x[k:k + 1] for n, x in self.inputs.items()})
 
 
 def measure(case: LatencyCase, pool: FramePool | None = None, clock: Clock = time.monotonic_ns,
-            bare: bool = True, depth: Callable[[], object] | None = None) -> LatencyResult:
+            bare: bool = True, depth: Callable[[], object] | None = None,
+            bare_bundle: Path | None = None) -> LatencyResult:
     """Run ``case`` through ``ForceRuntime`` over the frame pool (cycled) and return
-    per-stage percentiles in ms; ``bare``: also time the graph in a bare onnxruntime
-    session (onnxruntime cases). ``clock`` is the runtime's clock (tests inject one).
+    per-stage percentiles in ms; ``bare``: also time a graph in a bare onnxruntime session
+    (onnxruntime cases), one bare run after every runtime step: the case's own graph, or
+    ``bare_bundle`` (issue 18: the reference graph of commit c1733e6). ``clock`` is the
+    runtime's clock (tests inject one).
     ``depth``: the depth-stage factory for depth variants (default: the virtual DIGIT's
     calibration, :func:`benchmarks.frames.depth_stage`)."""
     from tactile_force.edge import ContactGate
@@ -248,7 +260,7 @@ def measure(case: LatencyCase, pool: FramePool | None = None, clock: Clock = tim
 
     # A bare session run of the same graph follows every runtime step (onnxruntime cases):
     # both see the same machine load, interleaved frame by frame.
-    bare_runner = BareOnnxRuntime(case, pool) if bare and case.engine == "onnxruntime" else None
+    bare_runner = BareOnnxRuntime(case, pool, bare_bundle) if bare and case.engine == "onnxruntime" else None
     bare_ms = np.full(n_total, np.nan)
     i = 0
     while not rt.finished:

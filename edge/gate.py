@@ -200,6 +200,13 @@ class GateResult:
         return self._mask_ready
 
     @property
+    def reduced_mask(self) -> np.ndarray:
+        """The gate's working mask (H/k x W/k uint8 0/255, a buffer it reuses), the mask of
+        :attr:`reduced`: what a depth stage at the network resolution reads (``mask`` is this
+        one upscaled by nearest neighbour)."""
+        return self._small
+
+    @property
     def mask(self) -> np.ndarray:
         if not self._mask_ready:
             cv2.resize(self._small, (self._full.shape[1], self._full.shape[0]), dst=self._full,
@@ -287,6 +294,7 @@ class ContactGate:
         self._prev_thumb: np.ndarray | None = None
         self._given = 0  # live frames still to check against a background given at start
         self._given_origin = ""
+        self._reduced_for: np.ndarray | None = None  # the frame reduce() was called for
         self.relearned = 0  # how many times the background was re-learnt after a mismatch
 
     # -- background ---------------------------------------------------------------------
@@ -346,6 +354,16 @@ class ContactGate:
         self.capture_background([frame])
 
     # -- per frame ----------------------------------------------------------------------
+    def reduce(self, frame: np.ndarray | TimedFrame) -> np.ndarray:
+        """The frame's one downscale, now: the reduced image (H/k x W/k x 3 uint8, the gate's
+        buffer, valid until the next frame). A following :meth:`update` of the same array
+        judges this image without reducing the frame again (the runtime checks the frame's
+        exposure on it first)."""
+        arr = self._as_array(frame, None)
+        self._reduce(arr)
+        self._reduced_for = arr
+        return self._small
+
     def update(self, frame: np.ndarray | TimedFrame) -> GateResult:
         """Gate one frame (HxWx3 uint8 BGR, same size as the background)."""
         arr = self._as_array(frame, None)
@@ -718,21 +736,25 @@ class ContactGate:
         self._sub_blur = np.empty((wh, ww, 3), np.uint8)
         self._noise_d = np.empty((wh, ww, 3), np.uint8)
 
+    def _reduce(self, arr: np.ndarray) -> None:
+        """The one downscale into ``_small``."""
+        s = int(self.options.downscale)
+        if self._reducer is not None:
+            self._reducer(arr, out=self._small)
+        elif s > 1:
+            cv2.resize(arr, (self._small.shape[1], self._small.shape[0]), dst=self._small,
+                       interpolation=cv2.INTER_LINEAR if s <= 2 else cv2.INTER_NEAREST)
+        else:
+            np.copyto(self._small, arr)
+
     def _prepare(self, arr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The frame's one downscale (an exact box average, edge/reduce.py, into ``_small``;
         a factor that does not divide the frame: INTER_LINEAR at x2, else one pixel per block)
         + blur into the uint8 working buffer, and its thumbnail; all buffers are reused."""
-        s = int(self.options.downscale)
-        src = arr
-        if self._reducer is not None:
-            self._reducer(arr, out=self._small)
-            src = self._small
-        elif s > 1:
-            cv2.resize(arr, (self._small.shape[1], self._small.shape[0]), dst=self._small,
-                       interpolation=cv2.INTER_LINEAR if s <= 2 else cv2.INTER_NEAREST)
-            src = self._small
-        else:
-            np.copyto(self._small, arr)
+        if self._reduced_for is not arr:
+            self._reduce(arr)
+        self._reduced_for = None
+        src = self._small
         b = self.options.blur
         if b > 1:
             cv2.GaussianBlur(src, (b, b), 0, dst=self._work)

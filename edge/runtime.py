@@ -587,7 +587,9 @@ class ForceRuntime:
         except FrameError as exc:
             out.append(self._finish(self._reading(s, tf, Flags.INVALID_INPUT, latency=lat, detail=str(exc)), start))
             return None
-        problem = exposure_problem(frame)
+        # The frame's one downscale happens here when the gate works reduced: exposure is judged
+        # on that image (box averages keep the mean), the gate and the model then read it too.
+        problem = exposure_problem(s.gate.reduce(frame) if s.gate.reduction.factor > 1 else frame)
         if problem:
             out.append(self._finish(self._reading(s, tf, Flags.INVALID_INPUT, latency=lat,
                                                   detail=f"{s.name} frame {tf.index}: {problem} "
@@ -613,7 +615,13 @@ class ForceRuntime:
         if self._shared[s.name]:
             p.net = g.reduced
         if s.depth is not None:
-            res = s.depth.process(frame, g.mask)
+            # a depth stage at the network resolution reads the gate's reduced image and mask
+            # (the frame's one downscale); otherwise the frame and the full-resolution mask
+            grid = getattr(s.depth, "grid_frame_shape", None)
+            if grid is not None and g.reduced is not None and g.reduced.shape == grid:
+                res = s.depth.process(g.reduced, g.reduced_mask)
+            else:
+                res = s.depth.process(frame, g.mask)
             t3 = self.clock()
             p.depth_ms = self._ms(t2, t3)
             if not getattr(res, "ok", False):
