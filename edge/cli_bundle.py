@@ -89,6 +89,7 @@ def describe_manifest(b) -> list[str]:  # b: Bundle
         lines.append(f"calib     {c.method} force calibration, {len(c.raw_n)} knots, fitted on {c.frames} frames "
                      f"({c.data or '?'})")
     lines += data_stats_lines(m)
+    lines += interval_lines(m)
     p = m.provenance
     lines.append(f"weights   trained on {p.trained_on}; checkpoint {p.checkpoint or '-'}"
                  + (f"; quantized from {p.quantized_from.bundle}" if p.quantized_from else "")
@@ -96,6 +97,21 @@ def describe_manifest(b) -> list[str]:  # b: Bundle
     if p.note:
         lines.append(f"note      {p.note}")
     return lines
+
+
+def interval_lines(m) -> list[str]:  # m: Manifest
+    """Every reading's error bar (manifest ``interval``), one line."""
+    iv = m.interval
+    if iv is None:
+        return ["interval  NONE: every reading's interval is 'unknown' (fit one: calibrate-force, or "
+                "python -m benchmarks.interval_fit BUNDLE)"]
+    if iv.model_sha256 and m.sha256 and iv.model_sha256 != m.sha256:
+        return [f"interval  fitted for ANOTHER model ({iv.model_sha256[:12]}...): not applied, readings 'unknown'"]
+    qs = [b.q for b in iv.bins if b.q is not None]
+    unknown = sum(b.q is None for b in iv.bins)
+    span = f"+- {min(qs):.3f} to {max(qs):.3f} x max(estimate, {iv.scale_floor_n:g} N)" if qs else "unknown everywhere"
+    return [f"interval  {iv.coverage:g} coverage, {span}, {len(iv.bins)} bin(s)"
+            + (f" ({unknown} unknown)" if unknown else "") + f", split conformal on {iv.n} frames ({iv.data or '?'})"]
 
 
 def data_stats_lines(m) -> list[str]:  # m: Manifest

@@ -327,3 +327,13 @@ def test_interval_bin_record_is_typed():
     assert iv.bounds(7.0)[2] is IntervalState.UNKNOWN and iv.bounds(2.0) == (1.0, 3.0, IntervalState.KNOWN)
     with pytest.raises(ValueError, match="only the last bin"):
         ForceInterval(bins=[IntervalBin(0.0, None, 1, 0.1), IntervalBin(5.0, None, 1, 0.1)]).check()
+
+
+def test_bundle_show_names_the_interval(rgb_bundle, tmp_path, fitted, capsys):
+    from tactile_force.edge.cli import main as cli_main
+
+    assert cli_main(["bundle", "show", str(rgb_bundle)]) == 0
+    assert "interval  NONE" in capsys.readouterr().out
+    path = _with_interval(rgb_bundle, tmp_path / "shown", fitted)
+    assert cli_main(["bundle", "show", str(path)]) == 0
+    assert "interval  0.9 coverage" in capsys.readouterr().out
