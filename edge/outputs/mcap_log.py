@@ -4,7 +4,8 @@ The file uses the ROS 2 profile: ``ros2msg`` schemas and CDR messages, the same 
 topics as the live ROS 2 output, so ``ros2 bag info/play`` and Foxglove open it:
 
 - ``/tactile/force`` (``topic``): geometry_msgs/msg/WrenchStamped, force.z in N (NaN: no estimate)
-- ``/tactile/force/diagnostics``: diagnostic_msgs/msg/DiagnosticArray (flags, latency in ms)
+- ``/tactile/force/diagnostics``: diagnostic_msgs/msg/DiagnosticArray (flags, interval, latency in ms)
+- ``/tactile/force/interval``: geometry_msgs/msg/Vector3Stamped, the interval in N (x low, y estimate, z high)
 - ``/tactile/<sensor>/image/compressed``: sensor_msgs/msg/CompressedImage, JPEG of the
   HxWx3 uint8 BGR frame (``frames=True``)
 - ``/tactile/<sensor>/contact_mask/compressed``: sensor_msgs/msg/CompressedImage, PNG of
