@@ -269,8 +269,13 @@ def node_profile(bundle: Path, pool, runs: int) -> tuple[list[list[object]], flo
         so.profile_file_prefix = str(Path(tmp) / "ort")
         sess = ort.InferenceSession(str(b.onnx_path), so, providers=["CPUExecutionProvider"])
         name = b.manifest.inputs[0].name
+        from tactile_force.edge.manifest import Reduction
+        from tactile_force.edge.reduce import reduce_frames
+
+        red = b.manifest.inputs[0].reduction  # a graph at the network resolution reads reduced frames
+        frames = pool.rgb if red.method is Reduction.NONE else reduce_frames(pool.rgb, red)
         for i in range(runs):
-            sess.run(None, {name: pool.rgb[i % len(pool.rgb):i % len(pool.rgb) + 1]})
+            sess.run(None, {name: frames[i % len(frames):i % len(frames) + 1]})
         events = json.loads(Path(sess.end_profiling()).read_text())
     per_run: dict[str, list[float]] = defaultdict(lambda: [0.0] * runs)
     nodes: dict[str, set] = defaultdict(set)

@@ -173,11 +173,185 @@ def reduction_timings(repeats: int = 2000) -> list[list[object]]:
     return rows
 
 
+# ----------------------------------------------------------------------------- the goals
+
+#: Issue 18's goals: (what, stage, statistic, limit as a multiple of the reference bare p50).
+GOALS = (("runtime total p50", "total", "p50", 0.80),
+         ("runtime total p99", "total", "p99", 1.70),
+         ("gate p50", "gate", "p50", 0.12))
+#: What the issue measured at commit c1733e6 (idle 2-core AMD EPYC host), as ratios to the bare p50.
+BEFORE_ISSUE = {"runtime total p50": "1.61 - 1.80", "runtime total p99": "2.56 - 2.75", "gate p50": "0.44 - 0.50"}
+
+
+def interleaved(frames: int = 2000, warmup: int = 200) -> dict:
+    """One run, one thread, frames in contact from memory: per frame, in turn, (1) a
+    ``ForceRuntime`` step with the default bundle (graph at the network resolution, one
+    downscale shared by gate and model), (2) a bare onnxruntime session on the reference graph
+    (c1733e6, full-resolution input: the yardstick), (3) a ``ForceRuntime`` step with the
+    reference graph as its bundle (the full-resolution path, today's runtime code).
+    Returns {'after': {stage: samples ms}, 'before': {...}, 'bare': samples ms, 'machine': state}."""
+    import onnxruntime as ort
+    from tactile_force.edge import ContactGate, OnnxForceModel
+    from tactile_force.edge.reading import Flags
+    from tactile_force.edge.runtime import ForceRuntime, RuntimeOptions, Sensor
+
+    from .frames import frame_pool
+    from .latency import MemorySource
+    from .machine import CpuWindow
+
+    cv2.setNumThreads(1)
+    pool = frame_pool()
+    n = warmup + frames
+    runtimes, samples = {}, {}
+    for key, bundle in (("after", DEFAULT_DIR), ("before", REFERENCE_GRAPH)):
+        gate = ContactGate()
+        gate.capture_background(pool.background)
+        runtimes[key] = ForceRuntime([Sensor("bench", MemorySource(pool.rgb, n), gate)],
+                                     OnnxForceModel(bundle, threads=1),
+                                     RuntimeOptions(threads=1, deadline_ms=1e9, latency_window=16, grabbers=False))
+        samples[key] = np.full((n, 4), np.nan)
+    so = ort.SessionOptions()
+    so.intra_op_num_threads = 1
+    so.inter_op_num_threads = 1
+    so.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
+    so.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL
+    so.log_severity_level = 3
+    bare_sess = ort.InferenceSession(str(REFERENCE_GRAPH), so, providers=["CPUExecutionProvider"])
+    bare = np.full(n, np.nan)
+    window = CpuWindow()
+    for i in range(n):
+        for key in ("after", "bare", "before"):
+            if key == "bare":
+                f = pool.rgb[i % len(pool.rgb)][None]
+                t0 = time.perf_counter_ns()
+                bare_sess.run(None, {"rgb": f})
+                bare[i] = (time.perf_counter_ns() - t0) / 1e6
+                continue
+            for r in runtimes[key].step():
+                if r.frame_index >= 0 and not r.flags & (Flags.NO_CONTACT | Flags.INVALID_INPUT | Flags.STALE):
+                    L = r.latency
+                    samples[key][r.frame_index] = (L.gate_ms, L.inference_ms, L.total_ms,
+                                                   L.total_ms - L.gate_ms - L.inference_ms)
+    state = window.stop()
+    for rt in runtimes.values():
+        rt.close()
+    out = {k: {st: v[warmup:, j] for j, st in enumerate(("gate", "inference", "total", "glue"))}
+           for k, v in samples.items()}
+    return {**out, "bare": bare[warmup:], "machine": state}
+
+
+def goal_rows(run: dict) -> list[list[object]]:
+    """[[goal, limit, before (issue, c1733e6), before (this run), after (this run), met]] as
+    ratios to the reference bare p50 of the same run."""
+    from .stats import percentiles
+
+    ref = percentiles(run["bare"]).p50
+    rows = []
+    for what, stage, stat, limit in GOALS:
+        before = getattr(percentiles(run["before"][stage]), stat) / ref
+        after = getattr(percentiles(run["after"][stage]), stat) / ref
+        rows.append([what, f"<= {limit:.2f}", BEFORE_ISSUE[what], before, after, "yes" if after <= limit else "NO"])
+    return rows
+
+
+def stage_rows(run: dict) -> list[list[object]]:
+    """[[path, stage, p50 ms, p99 ms, p50 / reference p50, contact frames]]."""
+    from .stats import percentiles
+
+    ref = percentiles(run["bare"])
+    rows = [["reference graph, bare onnxruntime session", "inference", ref.p50, ref.p99, 1.0, ref.n]]
+    for key, label in (("before", "reference graph through ForceRuntime (full-resolution path)"),
+                       ("after", "default bundle through ForceRuntime (one downscale, 80x60 graph)")):
+        for st in ("gate", "inference", "glue", "total"):
+            p = percentiles(run[key][st])
+            rows.append([label, st, p.p50, p.p99, p.p50 / ref.p50, p.n])
+    return rows
+
+
+def check_runs(runs: int = 10, frames: int = 1000) -> list[list[object]]:
+    """The under-1 ms check (benchmarks/check.py: the best RGBmod bundle's total p99 through
+    ForceRuntime, one thread, frames in contact) ``runs`` times back to back:
+    [[run, bundle, total p50 ms, total p99 ms, verdict, machine]]."""
+    from .check import BUDGET_MS, JUDGED, _best
+    from .latency import measure
+    from .machine import CpuWindow
+
+    rows = []
+    for k in range(1, runs + 1):
+        w = CpuWindow()
+        which, best, _ = _best(measure, frames, BUDGET_MS)
+        state = w.stop()
+        t = best.stages[JUDGED]
+        rows.append([k, which, t.p50, t.p99, "PASS" if t.p99 <= BUDGET_MS else "FAIL", state.line()])
+    return rows
+
+
+def graph_rows(runs: int = 400) -> list[list[object]]:
+    """Per-op time (us, median per run, onnxruntime profiler) of the reference and default graphs."""
+    from .frames import frame_pool
+    from .latency_page import node_profile
+
+    pool = frame_pool()
+    rows = []
+    for label, b in (("reference c1733e6", REFERENCE_GRAPH), ("default (80x60 input)", DEFAULT_DIR)):
+        ops, run = node_profile(b, pool, runs)
+        rows.append([label, "model_run (profiling on)", run, "", ""])
+        rows += [[label, *r] for r in ops]
+    return rows
+
+
+def page(argv: list[str], frames: int = 2000, check: int = 10, quick: bool = False) -> str:
+    """docs/benchmarks/one_downscale.md."""
+    from .machine import command_line, describe_machine, header
+    from .stats import markdown_table
+
+    run = interleaved(frames=frames, warmup=50 if quick else 200)
+    red_rows = reduction_timings(200 if quick else 2000)
+    acc = accuracy()
+    graph = graph_rows(100 if quick else 400)
+    checks = check_runs(check, 200 if quick else 1000)
+    machine = describe_machine()
+    passed = sum(1 for r in checks if r[4] == "PASS")
+    parts = [header("One downscale per frame (issue 18)", command_line(argv), machine,
+                    "Ratios are to the reference: a bare onnxruntime session (1 intra-op thread, sequential) on "
+                    "today's default graph of commit c1733e6 (`benchmarks/reference_graphs/default_c1733e6.onnx`, "
+                    "full-resolution uint8 input, 4x4 AveragePool in the graph), timed interleaved frame by frame "
+                    "with the runtimes in ONE run, so machine speed cancels. Frames: virtual DIGIT frames in "
+                    "contact from memory (`benchmarks/frames.py`). "
+                    f"Machine during the interleaved run: {run['machine'].line()}."),
+             "## Goals", "",
+             markdown_table(["goal", "limit (x reference p50)", "before (issue, c1733e6)", "before (this run: "
+                             "reference graph through today's runtime)", "after (default bundle)", "met"],
+                            goal_rows(run)),
+             "", "## Stages", "",
+             markdown_table(["path", "stage", "p50 ms", "p99 ms", "p50 / reference p50", "frames"], stage_rows(run)),
+             "", "## How the frame is reduced (320x240x3 -> 80x60x3, one thread, interleaved)", "",
+             markdown_table(["method", "p50 us", "p99 us", "max |diff| to the exact mean (levels)",
+                             "share of pixels off the rounded mean"], red_rows),
+             "", "Accuracy of the default weights under each reduction (RE = |f - f_gt| / f_gt; synthetic: the "
+                 "reference recipe's held-out test split; real: the 11 labelled AUROVA DIGIT frames):", "",
+             markdown_table(["graph", "reduction", "RE synthetic", "MAE synthetic (N)", "RE AUROVA", "MAE AUROVA (N)"],
+                            acc),
+             "", "## The graph, node by node (onnxruntime profiler, us per run, median)", "",
+             markdown_table(["graph", "op", "us", "share", "nodes"], graph),
+             "", f"## The under-1 ms check, {len(checks)} runs back to back ({passed}/{len(checks)} PASS)", "",
+             markdown_table(["run", "bundle", "total p50 ms", "total p99 ms", "verdict", "machine"], checks)]
+    return "\n".join(parts) + "\n"
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m benchmarks.one_downscale", description=__doc__.split("\n")[0])
-    ap.add_argument("what", choices=("make-default", "accuracy", "reductions"))
+    ap.add_argument("what", choices=("make-default", "accuracy", "reductions", "goals"))
+    ap.add_argument("--frames", type=int, default=2000, help="goals: frames per path after warm-up")
     args = ap.parse_args(argv)
-    if args.what == "make-default":
+    if args.what == "goals":
+        from .stats import markdown_table
+
+        run = interleaved(frames=args.frames)
+        print(markdown_table(["goal", "limit", "before (issue)", "before (this run)", "after", "met"], goal_rows(run)))
+        print(markdown_table(["path", "stage", "p50 ms", "p99 ms", "p50/ref", "n"], stage_rows(run)))
+        print(run["machine"].line())
+    elif args.what == "make-default":
         make_default()
     elif args.what == "accuracy":
         for r in accuracy():
