@@ -16,6 +16,11 @@ Grid and boundary (H x W height map ``h``, pixels):
 The FFT backend is ``scipy.fft`` (native DST-I, about 0.8 ms for a 319 x 239 float32
 round trip on one core) when SciPy is installed, else numpy's real FFT of the odd
 extension (same result, about 3x slower). Both are exact; ``backend`` names which.
+On a small grid (both sides at most :data:`MATMUL_MAX_N` unknowns, e.g. the 79 x 59 interior
+of an 80 x 60 network-resolution depth grid) the DST-I is applied as two products with
+precomputed sine matrices (``backend = "matmul"``): the same transform, exact to float
+rounding, and about half the time of two FFT calls at that size, where the calls' fixed
+cost dominates.
 """
 
 from __future__ import annotations
@@ -24,6 +29,15 @@ import numpy as np
 
 #: Solver array dtypes that are supported.
 _DTYPES = (np.float32, np.float64)
+#: 'auto' uses the dense sine-matrix DST-I when both interior sides are at most this long.
+MATMUL_MAX_N = 128
+
+
+def _sine_matrix(n: int, dtype) -> np.ndarray:
+    """The unnormalised DST-I of length n as a matrix: S[j, k] = 2 sin(pi (j+1)(k+1)/(n+1))
+    (symmetric; ``S @ x`` equals scipy's ``dst(x, type=1)``)."""
+    k = np.arange(1, n + 1, dtype=np.float64)
+    return np.ascontiguousarray((2.0 * np.sin(np.pi * np.outer(k, k) / (n + 1))).astype(dtype))
 
 
 def _eigenvalues(n: int, dtype) -> np.ndarray:
@@ -78,14 +92,21 @@ class PoissonSolver:
         norm = (2.0 * (n_r + 1)) * (2.0 * (n_c + 1))
         self._inv_lam = (1.0 / (lam * norm)).astype(self.dtype)
         self._div = np.zeros((n_r, n_c), dtype=self.dtype)
-        self.backend = self._pick_backend(backend)
+        self.backend = self._pick_backend(backend, max(n_r, n_c))
         if self.backend == "numpy":
             self._np = _NumpyDST1(n_r, n_c, self.dtype)
+        if self.backend == "matmul":
+            self._s_r = _sine_matrix(n_r, self.dtype)
+            self._s_c = _sine_matrix(n_c, self.dtype)
+            self._tmp = np.empty((n_r, n_c), dtype=self.dtype)
+            self._spec = np.empty((n_r, n_c), dtype=self.dtype)
 
     @staticmethod
-    def _pick_backend(backend: str) -> str:
-        if backend not in ("auto", "scipy", "numpy"):
-            raise ValueError(f"PoissonSolver backend {backend!r}: expected 'auto', 'scipy' or 'numpy'")
+    def _pick_backend(backend: str, longest: int = MATMUL_MAX_N + 1) -> str:
+        if backend not in ("auto", "scipy", "numpy", "matmul"):
+            raise ValueError(f"PoissonSolver backend {backend!r}: expected 'auto', 'scipy', 'numpy' or 'matmul'")
+        if backend == "matmul" or (backend == "auto" and longest <= MATMUL_MAX_N):
+            return "matmul"
         if backend in ("auto", "scipy"):
             try:
                 import scipy.fft  # noqa: F401
@@ -97,6 +118,11 @@ class PoissonSolver:
         return "numpy"
 
     def _dst2d(self, x: np.ndarray) -> np.ndarray:
+        if self.backend == "matmul":  # S_r @ x @ S_c (both symmetric), into reused buffers
+            np.matmul(self._s_r, x, out=self._tmp)
+            out = self._spec if x is not self._spec else x
+            np.matmul(self._tmp, self._s_c, out=out)
+            return out
         if self.backend == "scipy":
             import scipy.fft as sfft
 

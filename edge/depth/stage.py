@@ -191,6 +191,8 @@ class DepthStage:
             gx, gy, _ = normals_to_gradients(self.lut.flat_lut, options.guards)
             # x k: height (full-resolution px) per grid pixel (DepthOptions, Notes)
             self._glut = (np.stack([gx, gy], axis=1) * np.float32(k)).astype(np.float32)
+            b = self.lut.bins
+            self._cell_weights = np.array([b * b, b, 1], np.float32)
             bg = frame_reducer(k, options.reduction)(self.lut.background) if k > 1 else self.lut.background
             self._bg_box = bg.astype(np.float32) - np.float32(self.lut.bins * self.lut.bin_width / 2.0)
         if options.mode == "paper" and self.mlp is None:
@@ -389,14 +391,12 @@ class DepthStage:
         assert self.lut is not None
         x, y, w, h = cv2.boundingRect(np.ascontiguousarray(m).view(np.uint8))
         box = (slice(y, y + h), slice(x, x + w))
-        q = frame[box].astype(np.float32)
-        q -= self._bg_box[box]
+        q = np.subtract(frame[box], self._bg_box[box], dtype=np.float32)
         q *= 1.0 / self.lut.bin_width
         np.clip(q, 0, self.lut.bins - 1, out=q)
-        qi = q.astype(np.intp)
-        b = self.lut.bins
-        cells = (qi[..., 0] * b + qi[..., 1]) * b + qi[..., 2]
-        g = self._glut[cells]  # (h, w, 2)
+        np.floor(q, out=q)  # q >= 0: floor == the integer truncation of NormalLUT.index
+        cells = (q @ self._cell_weights).astype(np.intp)  # (q0 * b + q1) * b + q2, exact in float32
+        g = np.take(self._glut, cells, axis=0)  # (h, w, 2)
         inside = m[box]
         np.multiply(g[..., 0], inside, out=self._gx[box])
         np.multiply(g[..., 1], inside, out=self._gy[box])
@@ -445,10 +445,20 @@ class DepthStage:
         return DepthResult(self._depth.copy(), True, "", d, contact_px, 0)
 
 
+_MID_X = np.array([[0.5, 0.5]], np.float32)
+_MID_Y = np.ascontiguousarray(_MID_X.T)
+
+
 def _midpoint_slopes(gx: np.ndarray, gy: np.ndarray) -> None:
     """In place: each forward difference takes the mean slope of its two end pixels (the
     pixel beyond the last row / column is flat), ``g[:, j] = (g[:, j] + g[:, j+1]) / 2``
-    (DepthOptions, Notes: network resolution)."""
+    (DepthOptions, Notes: network resolution). One OpenCV correlation per axis (float32)."""
+    if gx.dtype == np.float32 and gy.dtype == np.float32:
+        import cv2
+
+        cv2.filter2D(gx, -1, _MID_X, dst=gx, anchor=(0, 0), borderType=cv2.BORDER_CONSTANT)
+        cv2.filter2D(gy, -1, _MID_Y, dst=gy, anchor=(0, 0), borderType=cv2.BORDER_CONSTANT)
+        return
     gx[:, :-1] += gx[:, 1:]
     gy[:-1, :] += gy[1:, :]
     gx *= 0.5

@@ -165,3 +165,18 @@ def test_runtime_builds_the_recorded_grid():
     stage = build_depth_stage(None, m)
     assert stage.options.downscale == 4 and stage.options.reduction == "area-2x-steps"
     assert stage.output_shape == (80, 60, 1)
+
+
+@pytest.mark.parametrize("shape", [(80, 60), (40, 30), (320, 240)])
+def test_matmul_backend_is_the_same_transform(shape):
+    """The dense sine-matrix DST-I ('auto' on small grids) solves exactly like scipy's FFT."""
+    rng = np.random.default_rng(0)
+    gx, gy = rng.normal(size=shape), rng.normal(size=shape)
+    a = PoissonSolver(shape, np.float64, "matmul").solve(gx, gy)
+    b = PoissonSolver(shape, np.float64, "scipy").solve(gx, gy)
+    assert np.abs(a - b).max() < 1e-9 * max(1.0, np.abs(b).max())
+    assert PoissonSolver((80, 60)).backend == "matmul" and PoissonSolver((320, 240)).backend == "scipy"
+    rows, cols = grid_centres()
+    h, _, _ = cap_field(rows, cols)
+    out = PoissonSolver((80, 60), np.float32).solve(*(g.astype(np.float32) for g in forward_gradients(h)))
+    assert np.abs(out - h).max() < 2e-5 * h.max()
