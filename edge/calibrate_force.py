@@ -277,6 +277,50 @@ def read_labelled(root: str | os.PathLike, need_depth: bool = False) -> Labelled
                           np.array([s.force_n for s in samples], np.float64), f"{p} ({len(samples)} frames)")
 
 
+def sensor_record(data: str | os.PathLike, frames: LabelledFrames, serial: str = "",
+                  background: str | os.PathLike | None = None):
+    """The :class:`~.force_calibration.SensorFingerprint` of the sensor the presses in ``data``
+    were recorded on: ``serial`` (else the single ``sensor`` that ``record`` wrote in
+    ``meta.jsonl``, else unknown) and the fingerprint of ``background`` (a no-contact image of
+    it), else of the lightest press (least contact). Raises :class:`CalibrationRefused` for an
+    unreadable background or presses whose meta names several sensors."""
+    import json
+
+    from .force_calibration import sensor_fingerprint
+
+    meta = Path(data) / "meta.jsonl"
+    if not serial and meta.is_file():
+        names = set()
+        for line in meta.read_text(errors="replace").splitlines():
+            try:
+                rec = json.loads(line)
+            except ValueError:
+                continue
+            if isinstance(rec, dict) and rec.get("sensor"):
+                names.add(str(rec["sensor"]))
+        if len(names) > 1:
+            raise CalibrationRefused(f"--data {data}: meta.jsonl names several sensors {sorted(names)}; a force "
+                                     "calibration belongs to one sensor (pass --sensor SERIAL to choose)")
+        serial = names.pop() if names else ""
+    if background is not None:
+        from .errors import SourceError
+        from .sources import load_background
+
+        try:
+            frame = load_background(background)[0]
+        except SourceError as exc:
+            raise CalibrationRefused(f"--background: {exc}") from None
+        if frame.shape != frames.rgb.shape[1:]:
+            raise CalibrationRefused(f"--background {background}: {frame.shape[1]}x{frame.shape[0]} image; the "
+                                     f"presses are {frames.rgb.shape[2]}x{frames.rgb.shape[1]} (one sensor, one size)")
+        return sensor_fingerprint(frame, serial, f"--background {background}")
+    k = int(np.argmin(frames.force))
+    logging.getLogger(__name__).warning(
+        "calibrate-force: no --background: the sensor's fingerprint is taken from the lightest press (%.2f N); a "
+        "no-contact image of the sensor (--background NO_CONTACT.png) makes it exact", frames.force[k])
+    return sensor_fingerprint(frames.rgb[k], serial, f"the lightest press of {frames.source} ({frames.force[k]:.2f} N)")
+
+
 def raw_estimates(model, frames: LabelledFrames) -> np.ndarray:
     """Uncalibrated estimates (N,) of an OnnxForceModel loaded with ``calibrate=False``."""
     out = np.empty(len(frames.force), np.float64)
@@ -289,7 +333,8 @@ def raw_estimates(model, frames: LabelledFrames) -> np.ndarray:
 
 def calibrate_bundle(bundle_path: str | os.PathLike, data: str | os.PathLike, out: str | os.PathLike,
                      method: str = "isotonic", limits: CalibrationLimits | None = None, overwrite: bool = False,
-                     coverage: float = DEFAULT_COVERAGE, plot: str | os.PathLike | None = None):
+                     coverage: float = DEFAULT_COVERAGE, plot: str | os.PathLike | None = None,
+                     sensor: str = "", background: str | os.PathLike | None = None):
     """Fit a calibration for the bundle on the labelled frames in ``data``; write a new bundle at ``out``.
 
     Returns (written Bundle, ForceCalibration). The new bundle holds the same ONNX bytes;
@@ -297,13 +342,16 @@ def calibrate_bundle(bundle_path: str | os.PathLike, data: str | os.PathLike, ou
     and so is its ``interval``: refitted with ``coverage`` on the leave-one-out predictions
     (:func:`tactile_force.edge.interval.fit_interval`). ``plot``: also draw the raw and the
     leave-one-out calibrated estimates against the true force, with the fitted map, to this PNG
-    (:func:`tactile_force.edge.plots.calibration_plot`)."""
+    (:func:`tactile_force.edge.plots.calibration_plot`). The calibration records the sensor
+    it was fitted on (:func:`sensor_record`): ``sensor`` (its serial; default: the one
+    ``record`` wrote in ``meta.jsonl``) and a fingerprint of ``background`` (a no-contact
+    frame of it; default: the lightest press), so the runtime flags another sensor."""
     from .bundle import load_bundle, write_bundle
     from .inference import OnnxForceModel
     from .manifest import ErrorFigures, ErrorReport, SourceRef
     from .output_guard import OutputKind, check_output
 
-    inputs = [("bundle", bundle_path), ("--data", data)]
+    inputs = [("bundle", bundle_path), ("--data", data), ("--background", background)]
     dest = check_output(out, inputs, force=overwrite, kind=OutputKind.BUNDLE)
     src = load_bundle(bundle_path)
     model = OnnxForceModel(src, threads=1, calibrate=False)
@@ -311,6 +359,7 @@ def calibrate_bundle(bundle_path: str | os.PathLike, data: str | os.PathLike, ou
     raw = raw_estimates(model, frames)
     cal = fit_force_calibration(raw, frames.force, method, limits, data=frames.source,
                                 model_sha256=src.manifest.sha256)
+    cal.sensor = sensor_record(data, frames, sensor, background)
     manifest = copy.deepcopy(src.manifest)
     manifest.force_calibration = cal
     manifest.name = dest.name
@@ -347,6 +396,12 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--method", choices=METHODS, default="isotonic",
                         help="monotone map: isotonic (default; piecewise linear) or linear (gain + offset)")
     parser.add_argument("--force", action="store_true", help="replace --out if it exists")
+    parser.add_argument("--sensor", default="", metavar="SERIAL",
+                        help="serial of the sensor the presses come from (default: the one 'record' wrote in "
+                             "meta.jsonl); the runtime flags readings of another sensor out_of_distribution")
+    parser.add_argument("--background", default=None, metavar="NO_CONTACT.png",
+                        help="no-contact image of the same sensor: its fingerprint is recorded with the calibration "
+                             "(default: the lightest press stands in for it)")
     parser.add_argument("--coverage", type=float, default=DEFAULT_COVERAGE,
                         help="coverage of every reading's interval, fitted on the leave-one-out predictions "
                              f"(default {DEFAULT_COVERAGE:g}; 0 < c < 1)")
@@ -364,7 +419,8 @@ def main(args: argparse.Namespace) -> int:
     try:
         plot = plot_path(args.out)
         bundle, cal = calibrate_bundle(args.bundle, args.data, args.out, args.method, overwrite=args.force,
-                                       coverage=getattr(args, "coverage", DEFAULT_COVERAGE), plot=plot)
+                                       coverage=getattr(args, "coverage", DEFAULT_COVERAGE), plot=plot,
+                                       sensor=getattr(args, "sensor", ""), background=getattr(args, "background", None))
     except IntervalError as exc:
         print(f"tactile-force calibrate-force: error: --coverage: {exc}", file=sys.stderr)
         return 2
@@ -381,6 +437,9 @@ def main(args: argparse.Namespace) -> int:
     for label, f in (("before (raw)", b), ("after       ", a)):
         print(f"leave-one-out  {label}: RE {f.re_mean:.3f} +- {f.re_std:.3f}, "
               f"MAE {f.mae_mean:.2f} +- {f.mae_std:.2f} N")
+    if cal.sensor is not None:
+        print(f"sensor: {cal.sensor.serial or 'serial unknown'}; fingerprint from {cal.sensor.source} (readings of "
+              "another sensor are flagged out_of_distribution)")
     iv = bundle.manifest.interval
     if iv is not None:
         q = [b.q for b in iv.bins]

@@ -435,6 +435,11 @@ class ForceRuntime:
         #: (sensor, timestamp ns, HxWx3 uint8 BGR copy or None, HxW uint8 0/255 mask copy or
         #: None) of the frames gated in the last step, when :attr:`tap` asks for them.
         self.tapped: list[tuple[str, int, np.ndarray | None, np.ndarray | None]] = []
+        #: the sensor the model's force calibration was fitted on (None: not calibrated, or no record)
+        self._fingerprint = getattr(getattr(model, "calibration", None), "sensor", None)
+        self._sensor_checks = self._fingerprint is not None
+        self._bg_seen: dict[str, tuple[bool, int]] = {}  # per sensor: (background ready, re-learnt count) checked
+        self._foreign: dict[str, str] = {}  # per sensor: why it is not the calibration's sensor ("" = it is)
         _attach(model)  # last: a runtime that failed to build does not count as a user
 
     # -- public ---------------------------------------------------------------------------
@@ -596,6 +601,8 @@ class ForceRuntime:
                                                          "(LEDs off, lens covered?)"), start))
             return None
         g = s.gate.update(frame)
+        if self._sensor_checks:  # once per new background: is this the sensor the bundle was calibrated on?
+            self._check_sensor(s, frame, g)
         if s.depth is not None and (getattr(s.depth, "needs_reference", False)
                                     or s.gate.relearned != self._relearned[s.name]):
             self._depth_reference(s, frame, g)
@@ -632,6 +639,31 @@ class ForceRuntime:
                 return None
             p.depth = res.depth
         return p
+
+    def _check_sensor(self, s: Sensor, frame: np.ndarray, g: GateResult) -> None:
+        """Compare the sensor with the one the force calibration was fitted on, once per new
+        background (learnt, given or re-learnt), on the first no-contact frame that fits it:
+        its serial when the source knows one, else the calibration's no-contact fingerprint
+        (:func:`~.force_calibration.fingerprint_mismatch`). A mismatch flags every contact
+        reading of the sensor ``out_of_distribution``, the detail naming it."""
+        state = (s.gate.background_ready, s.gate.relearned)
+        if state == self._bg_seen.get(s.name):
+            return
+        assert self._fingerprint is not None
+        attached = getattr(s.source, "attached", None)
+        serial = str(getattr(s.source, "serial", "") or getattr(attached, "serial", "") or "")
+        known = bool(serial and self._fingerprint.serial)  # two serials decide at once
+        if s.gate.background_ready and not known and (g.contact or g.mismatch or g.invalid):
+            return  # wait for a no-contact frame that fits the background
+        self._bg_seen[s.name] = state
+        if not s.gate.background_ready:
+            return
+        from .force_calibration import fingerprint_mismatch
+
+        why = fingerprint_mismatch(self._fingerprint, frame, serial)
+        if why and why != self._foreign.get(s.name):
+            _log.warning("sensor %s: %s; its contact readings are flagged out_of_distribution", s.name, why)
+        self._foreign[s.name] = f"sensor {s.name}: {why}" if why else ""
 
     def _depth_reference(self, s: Sensor, frame: np.ndarray, g: GateResult) -> None:
         """Paper depth mode: the zero-depth reference is the gate's background. The frames the
@@ -691,6 +723,9 @@ class ForceRuntime:
         for p, raw in zip(pending, forces):
             lat = StageLatency(p.source_ms, p.gate_ms, p.depth_ms, inf_ms)
             flags, force, detail = self._judge(float(raw), p.gate, error)
+            if self._foreign and self._foreign.get(p.sensor.name):  # another sensor than the calibration's
+                flags |= Flags.OUT_OF_DISTRIBUTION
+                detail = f"{detail}; {self._foreign[p.sensor.name]}" if detail else self._foreign[p.sensor.name]
             r = self._reading(p.sensor, p.tf, flags, force, lat, detail, p.gate.area_px, float(raw))
             out.append(self._finish(r, p.start_ns))
 
