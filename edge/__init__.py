@@ -37,7 +37,7 @@ _LAZY = {
     "ForceRuntime": "runtime", "RuntimeOptions": "runtime", "RuntimeStats": "runtime", "Sensor": "runtime",
     "plan_stages": "runtime",
     "Scene": "scene", "build_scene": "scene", "default_bundle_path": "scene", "describe_scene": "scene",
-    "load_scene": "scene",
+    "load_scene": "scene", "shipped_bundles": "scene",
     "CameraSource": "sources", "ReplayFolderSource": "sources", "StreamLost": "sources", "VideoFileSource": "sources",
     "load_background": "sources", "open_v4l2": "sources",
     "ForceCalibration": "force_calibration", "DataStats": "data_stats",
@@ -84,7 +84,7 @@ __all__ = [
     "VirtualDigitOptions", "VirtualDigitSource", "build_scene", "check_frame", "choose_bundle",
     "default_bundle_path", "describe_scene", "error_report", "error_stats", "generate_dataset", "indenter_split",
     "load_background", "load_bundle", "load_scene", "open_v4l2", "paper_split", "plan_stages", "read_manifest",
-    "relative_error", "sha256_file", "split_ids", "write_bundle",
+    "relative_error", "sha256_file", "shipped_bundles", "split_ids", "write_bundle",
 ]
 
 if TYPE_CHECKING:  # for type checkers and IDEs; at run time these load lazily
@@ -98,7 +98,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time these load lazily
     from .metrics import ErrorReport, ErrorStats, error_report, error_stats, relative_error
     from .outputs import CsvWriter, JsonlWriter, StdoutWriter
     from .runtime import ForceRuntime, RuntimeOptions, RuntimeStats, Sensor, plan_stages
-    from .scene import Scene, build_scene, default_bundle_path, describe_scene, load_scene
+    from .scene import Scene, build_scene, default_bundle_path, describe_scene, load_scene, shipped_bundles
     from .sources import CameraSource, ReplayFolderSource, StreamLost, VideoFileSource, load_background, open_v4l2
     from .synthetic import (
         ContactSpec,

@@ -145,8 +145,9 @@ class OnnxForceModel:
 
     def predict(self, rgb: np.ndarray | None, depth: np.ndarray | None = None) -> np.ndarray:
         """Forces in newtons, (N,) float32, for rgb (N,320,240,3) uint8 BGR and, for
-        depth variants, depth (N,320,240,1) uint8. N is 1 or 2. D / Dmod bundles read only
-        the depth images (rgb may then be None).
+        depth variants, depth (N,320,240,1) uint8, or depth images already at the network
+        resolution (N, rows, cols, 1) (what a depth stage on the network grid makes, e.g.
+        80 x 60). N is 1 or 2. D / Dmod bundles read only the depth images (rgb may then be None).
 
         Thread-safe: one model may serve several threads or runtimes (two grippers); calls
         are serialised by a lock around fill + run + copy of the shared bound buffers (each
@@ -187,7 +188,9 @@ class OnnxForceModel:
               full: tuple[int, int, int], net: tuple[int, int, int] | None, reduced: bool) -> int:
         """Check a batch and write it into the bound buffer (reducing full-resolution images
         once, straight into it); returns N."""
-        if reduced and net is not None and x is not None and x.ndim == 4 and x.shape[1:] == net:
+        # depth images made at the network resolution (a depth record with a reduction, the
+        # depth stage's grid) are read as they are on both paths
+        if (reduced or name == "depth") and net is not None and x is not None and x.ndim == 4 and x.shape[1:] == net:
             x = check_batch(x, name, net, MAX_BATCH)
             buf[:x.shape[0]] = x
             return x.shape[0]

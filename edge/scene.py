@@ -80,6 +80,23 @@ def default_bundle_path() -> Path:
     return PACKAGE_DIR / "models" / "default"
 
 
+def shipped_bundles() -> dict[str, Path]:
+    """The bundles shipped in the package, by folder name, the default first.
+
+    Returns
+    -------
+    dict[str, pathlib.Path]
+        ``{"default": .../models/default, "d": .../models/d, "rgbmod_d": .../models/rgbmod_d}``
+        in this install: every folder of ``<package>/models`` holding a ``model.json`` (the
+        compact RGBmod default, and compact D and RGBmod+D bundles trained on the virtual
+        DIGIT's synthetic frames only). Empty when none is installed.
+    """
+    root = default_bundle_path().parent
+    found = sorted(p for p in root.iterdir() if p.is_dir() and (p / "model.json").is_file()) if root.is_dir() else []
+    found.sort(key=lambda p: p.name != "default")  # stable: the default first, the rest by name
+    return {p.name: p for p in found}
+
+
 # -- typed records ------------------------------------------------------------------------
 @dataclass
 class SensorSpec:
