@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import pytest
 from tactile_force.edge.cli import main as cli_main
-from tactile_force.edge.depth.calibration import Circle, check_circle_scale
+from tactile_force.edge.depth.calibration import Circle
 from tactile_force.edge.errors import DatasetError
 
 from tests.conftest import shared_data
@@ -53,6 +53,8 @@ def test_the_true_scale_still_calibrates(tmp_path, capsys):
 
 
 def test_check_circle_scale_rules():
+    from tactile_force.edge.depth.calibration import check_circle_scale
+
     circles = [Circle(120, 160, 30.0), Circle(100, 150, 35.0)]
     assert check_circle_scale(circles, (320, 240), 2.35, 19.58) == pytest.approx(2.35 * 19.58)
     with pytest.raises(DatasetError, match="larger than the 320x240 frame"):

@@ -17,7 +17,6 @@ import pytest
 from tactile_force.edge.bundle import write_bundle
 from tactile_force.edge.cli import main as cli_main
 from tactile_force.edge.errors import BundleError, TactileForceError
-from tactile_force.edge.output_guard import OutputKind, OutputRefused, check_output
 from tactile_force.edge.scene import default_bundle_path
 
 from benchmarks.robustness import make_dataset, write_frame_png
@@ -110,6 +109,8 @@ def test_quantize_onto_its_source_is_refused_with_force(tiny_checkpoint, tmp_pat
 
 
 def test_force_never_replaces_a_folder_that_is_not_a_bundle(tmp_path):
+    from tactile_force.edge.output_guard import OutputKind, OutputRefused, check_output
+
     folder = tmp_path / "mine"
     folder.mkdir()
     (folder / "thesis.tex").write_text("x")
@@ -178,6 +179,8 @@ def test_fifo_background_is_refused_at_once(replay, tmp_path):
 
 
 def test_special_file_input_is_refused_by_the_guard(tmp_path):
+    from tactile_force.edge.output_guard import OutputKind, OutputRefused, check_output
+
     fifo = _fifo(tmp_path / "frames")
     with pytest.raises(OutputRefused, match="FIFO"):
         check_output(tmp_path / "out", [("--calib", fifo)], kind=OutputKind.BUNDLE)

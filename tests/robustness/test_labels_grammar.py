@@ -15,7 +15,7 @@ import pytest
 from tactile_force.edge.cli import main as cli_main
 from tactile_force.edge.dataset import AuthorsDataset
 from tactile_force.edge.errors import DatasetError
-from tactile_force.edge.labels import LabelError, read_force_file, unit_problem
+from tactile_force.edge.labels import LabelError, read_force_file
 from tactile_force.edge.scene import default_bundle_path
 
 from benchmarks.robustness import expected_label
@@ -138,6 +138,8 @@ def test_labels_ten_times_too_large_give_a_warning_naming_the_cause(tmp_path, ca
 
 
 def test_unit_problem_rules():
+    from tactile_force.edge.labels import unit_problem
+
     assert unit_problem([1.08, 5.0, 11.9], "d") is None
     assert "x10" in (unit_problem([10.8, 50.0, 118.8], "d") or "")
     assert "kilograms" in (unit_problem([0.11, 0.5, 0.9], "d") or "")
