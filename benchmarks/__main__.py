@@ -10,6 +10,8 @@
 
 Results go to ``--out DIR`` (default out/benchmarks, git-ignored); docs/benchmarks only
 when it is named. Every page states the machine, its load while measuring, and the command.
+From an install (the 'bench' extra) the same is ``python -m tactile_force.benchmarks``; what a
+robot host runs is ``tactile-force bench`` (no torch) and ``tactile-force study`` (docs/bench.md).
 """
 
 from __future__ import annotations
