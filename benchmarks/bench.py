@@ -530,7 +530,7 @@ def plot(report: BenchReport, path: Path) -> Path:
     for b in report.bundles:
         measured = b.error is not None and b.error.re_mean is not None
         err = b.error.re_mean if measured and b.error is not None else b.manifest_re
-        pts.append(ParetoPoint(f"{b.variant} {b.precision}", b.total_ms.p99 if b.total_ms.p99 is not None
+        pts.append(ParetoPoint(b.name, b.total_ms.p99 if b.total_ms.p99 is not None
                                else math.nan, err, measured))
     return error_vs_latency(pts, report.budget_ms, path, title=f"{report.machine.cpu}, {report.threads} thread(s)")
 
