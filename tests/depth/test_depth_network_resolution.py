@@ -180,3 +180,14 @@ def test_matmul_backend_is_the_same_transform(shape):
     h, _, _ = cap_field(rows, cols)
     out = PoissonSolver((80, 60), np.float32).solve(*(g.astype(np.float32) for g in forward_gradients(h)))
     assert np.abs(out - h).max() < 2e-5 * h.max()
+
+
+def test_paper_mlp_on_the_grid_reads_block_centre_positions(paper_mlp_path):
+    """Exact mode with the paper MLP at downscale 4: its position inputs are the 4 x 4 blocks'
+    centres in full-resolution pixels (normalised by 240 / 320 as the authors did)."""
+    stage = DepthStage(DepthOptions(mapping=paper_mlp_path, downscale=4))
+    mlp = stage.mlp
+    assert mlp is not None and mlp.pitch == 4
+    mlp.encoded(np.zeros((80, 60, 3), np.uint8), np.arange(1))
+    xy = mlp._xy.reshape(80, 60, 2)
+    assert np.allclose(xy[0, 0], (1.5 / 240, 1.5 / 320)) and np.allclose(xy[79, 59], (237.5 / 240, 317.5 / 320))
