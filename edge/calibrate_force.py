@@ -444,7 +444,7 @@ def main(args: argparse.Namespace) -> int:
     if iv is not None:
         q = [b.q for b in iv.bins]
         print(f"interval ({iv.coverage:g} coverage, split conformal on the {iv.n} leave-one-out predictions): " + (
-            f"+- {max(v for v in q if v is not None):.3f} x the estimate" if iv.known else
+            f"+- {max(v for v in q if v is not None):.3f} x max(estimate, {iv.scale_floor_n:g} N)" if iv.known else
             "unknown: too few presses for this coverage (readings carry no interval)"))
     print(f"wrote {bundle.path} and {plot} (raw and calibrated estimates vs true force, the fitted map)")
     return 0
