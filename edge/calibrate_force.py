@@ -318,7 +318,9 @@ def sensor_record(data: str | os.PathLike, frames: LabelledFrames, serial: str =
     logging.getLogger(__name__).warning(
         "calibrate-force: no --background: the sensor's fingerprint is taken from the lightest press (%.2f N); a "
         "no-contact image of the sensor (--background NO_CONTACT.png) makes it exact", frames.force[k])
-    return sensor_fingerprint(frames.rgb[k], serial, f"the lightest press of {frames.source} ({frames.force[k]:.2f} N)")
+    fp = sensor_fingerprint(frames.rgb[k], serial, f"the lightest press of {frames.source} ({frames.force[k]:.2f} N)")
+    fp.from_press = True
+    return fp
 
 
 def raw_estimates(model, frames: LabelledFrames) -> np.ndarray:

@@ -40,6 +40,9 @@ class DataStats:
         contact mask (grey levels, max over channels; None: no contact in the data).
     contact_measured: False when no no-contact background was given: the colour ranges (the
         out-of-distribution check) are recorded, the contact sizes are not (contact-size check off).
+    background_thumb: the no-contact background's colours on the same grid (INTER_AREA of the
+        first background frame; B, G, R per cell; empty without a background): the runtime
+        checks a background given to it for a press against it (edge/background_check.py).
     margin: grey levels added on both sides of every cell's range by the check.
     max_outside_frac: share of thumbnail values outside their ranges above which a frame is
         out of distribution.
@@ -57,6 +60,7 @@ class DataStats:
     contact_area_frac_max: float | None = None
     deformation_max: float | None = None
     contact_measured: bool = True
+    background_thumb: list[float] = field(default_factory=list)
     margin: float = 12.0
     max_outside_frac: float = 0.10
     source: str = ""
@@ -70,6 +74,8 @@ class DataStats:
             if len(getattr(self, name)) != n:
                 raise ValueError(f"{name}: {len(getattr(self, name))} values; "
                                  f"expected thumb_rows x thumb_cols x 3 = {n}")
+        if self.background_thumb and len(self.background_thumb) != n:
+            raise ValueError(f"background_thumb: {len(self.background_thumb)} values; expected {n} (or none)")
         for name in ("channel_mean", "channel_std"):
             if len(getattr(self, name)) not in (0, 3):
                 raise ValueError(f"{name}: {len(getattr(self, name))} values; expected 3 (B, G, R)")
@@ -179,8 +185,16 @@ def compute_data_stats(frames_bgr: Iterable[np.ndarray], background: np.ndarray 
         contact_area_frac_max=round(float(max(areas)), 5) if areas else None,
         deformation_max=round(float(max(deforms)), 3) if deforms else None,
         contact_measured=measured,
+        background_thumb=_background_thumb(bgs[0], int(rows), int(cols)) if background is not None else [],
         source=source or f"{len(t)} frames",
     )
+
+
+def _background_thumb(frame: np.ndarray, rows: int, cols: int) -> list[float]:
+    from .force_calibration import look
+
+    t = look(np.asarray(frame))
+    return [round(float(v), 2) for v in t.ravel()] if t.shape[:2] == (rows, cols) else []
 
 
 def frames_data_stats(frames_bgr: Iterable[np.ndarray], background: object, source: str,

@@ -37,7 +37,8 @@ class SensorFingerprint:
     texture: per channel (B, G, R) the fine texture of the frame: mean |frame - 5x5 Gaussian
         blur of it| over its channel's mean brightness (gel texture and camera noise; a
         rendered frame's synthetic noise differs from a real camera's).
-    source: what the fingerprint was made from (``--background FILE`` or the lightest press).
+    source: what the fingerprint was made from (``--background FILE`` or the lightest press;
+        ``from_press`` True then: the thumbnail holds a light press).
     A frame matches when at least ``min_fit`` of its cells fit the thumbnail within
     ``fit_tolerance`` grey levels after a per-channel gain and offset (LED drift allowed), and
     its texture is within a factor ``texture_ratio`` of the fingerprint's on every channel.
@@ -49,6 +50,7 @@ class SensorFingerprint:
     thumb_cols: int = 15
     thumb: list[float] = field(default_factory=list)
     texture: list[float] = field(default_factory=list)
+    from_press: bool = False
     min_fit: float = 0.5
     fit_tolerance: float = 8.0
     texture_ratio: float = 1.35
@@ -76,6 +78,34 @@ def _look(frame_bgr: np.ndarray, rows: int, cols: int) -> tuple[np.ndarray, np.n
     return thumb, (detail / level).astype(np.float64)
 
 
+def cells_fitting(ref_thumb, thumb: np.ndarray, tolerance: float = 8.0) -> np.ndarray:
+    """Which thumbnail cells of ``thumb`` (rows x cols x 3) fit ``ref_thumb`` (the same grid,
+    any shape holding rows x cols x 3 values) within ``tolerance`` grey levels on every channel
+    after a per-channel gain and offset, fitted robustly on the cells that fit (a press or a
+    blob does not pull the fit). Returns a bool array (rows, cols)."""
+    x = np.asarray(ref_thumb, np.float64).reshape(-1, 3)
+    y = np.asarray(thumb, np.float64).reshape(-1, 3)
+    keep = np.ones(len(x), bool)
+    res = np.zeros(len(x))
+    for _ in range(4):
+        xs, ys = x[keep], y[keep]
+        var = xs.var(axis=0)
+        gain = np.where(var > 1e-3, ((xs * ys).mean(axis=0) - xs.mean(axis=0) * ys.mean(axis=0))
+                        / np.maximum(var, 1e-3), 0.0)
+        off = ys.mean(axis=0) - gain * xs.mean(axis=0)
+        res = np.abs(y - (x * gain + off)).max(axis=1)
+        new = res < tolerance
+        if new.sum() < len(x) // 4:
+            break
+        keep = new
+    return (res < tolerance).reshape(np.asarray(thumb).shape[:2])
+
+
+def look(frame_bgr: np.ndarray) -> np.ndarray:
+    """The frame's colours on the fingerprint grid (one cell = 16 x 16 pixels), float64."""
+    return _look(frame_bgr, max(2, frame_bgr.shape[0] // 16), max(2, frame_bgr.shape[1] // 16))[0]
+
+
 def sensor_fingerprint(frame_bgr: np.ndarray, serial: str = "", source: str = "") -> SensorFingerprint:
     """The fingerprint of a no-contact frame (HxWx3 uint8 BGR, 320 x 240 for a DIGIT)."""
     rows, cols = max(2, frame_bgr.shape[0] // 16), max(2, frame_bgr.shape[1] // 16)
@@ -97,22 +127,7 @@ def fingerprint_mismatch(fp: SensorFingerprint, frame_bgr: np.ndarray, serial: s
     if not fp.thumb or frame_bgr.shape[0] // 16 != fp.thumb_rows or frame_bgr.shape[1] // 16 != fp.thumb_cols:
         return ""
     thumb, texture = _look(frame_bgr, fp.thumb_rows, fp.thumb_cols)
-    x = np.asarray(fp.thumb, np.float64).reshape(-1, 3)
-    y = thumb.reshape(-1, 3)
-    keep = np.ones(len(x), bool)
-    res = np.zeros(len(x))
-    for _ in range(4):  # per-channel gain/offset, refitted on the cells that fit (a press does not)
-        xs, ys = x[keep], y[keep]
-        var = xs.var(axis=0)
-        gain = np.where(var > 1e-3, ((xs * ys).mean(axis=0) - xs.mean(axis=0) * ys.mean(axis=0))
-                        / np.maximum(var, 1e-3), 0.0)
-        off = ys.mean(axis=0) - gain * xs.mean(axis=0)
-        res = np.abs(y - (x * gain + off)).max(axis=1)
-        new = res < fp.fit_tolerance
-        if new.sum() < len(x) // 4:
-            break
-        keep = new
-    fit = float(np.mean(res < fp.fit_tolerance))
+    fit = float(np.mean(cells_fitting(fp.thumb, thumb, fp.fit_tolerance)))
     if fit < fp.min_fit:
         return (f"this bundle's force calibration was fitted on another sensor ({who}): only {100 * fit:.0f} % of "
                 "this sensor's no-contact image fits the calibration's (re-run calibrate-force on this sensor)")

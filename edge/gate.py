@@ -296,6 +296,11 @@ class ContactGate:
         self._given_origin = ""
         self._reduced_for: np.ndarray | None = None  # the frame reduce() was called for
         self.relearned = 0  # how many times the background was re-learnt after a mismatch
+        #: the first full-resolution frame given to :meth:`capture_background` (HxWx3 uint8 BGR;
+        #: None while the background is learnt from live frames): the runtime checks it once for
+        #: a press against the bundle's no-contact reference (edge/background_check.py)
+        self.background_image: np.ndarray | None = None
+        self.background_origin = ""
 
     # -- background ---------------------------------------------------------------------
     @property
@@ -327,8 +332,11 @@ class ContactGate:
         origin: where the frames came from (e.g. the scene's background file); when given,
         the first live frames are checked against it and a mismatch names it."""
         work, thumbs, noise = [], [], []
+        first: np.ndarray | None = None
         for i, f in enumerate(frames):
-            w, t = self._prepare(self._as_array(f, i))
+            arr = self._as_array(f, i)
+            first = arr if first is None else first
+            w, t = self._prepare(arr)
             work.append(w.astype(np.float32))
             thumbs.append(t.astype(np.float32))
             noise.append(self._noise(w))
@@ -337,6 +345,8 @@ class ContactGate:
         self._set_background(np.asarray(np.mean(work, axis=0, dtype=np.float32)),
                              np.asarray(np.mean(thumbs, axis=0, dtype=np.float32)), float(np.mean(noise)))
         self._given, self._given_origin = (5, origin) if origin else (0, "")
+        assert first is not None
+        self.background_image, self.background_origin = first.copy(), origin
 
     def reset(self) -> None:
         """Forget the background; the next ``background_frames`` frames are learnt again."""
@@ -671,6 +681,7 @@ class ContactGate:
         return float(max(cv2.mean(self._noise_d)[:3]))
 
     def _set_background(self, bg: np.ndarray, thumb: np.ndarray, noise: float) -> None:
+        self.background_image, self.background_origin = None, ""  # capture_background sets them again
         self._bg = bg
         self._bg_thumb = thumb
         self._ref = _Reference(thumb)

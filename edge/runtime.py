@@ -440,6 +440,11 @@ class ForceRuntime:
         self._sensor_checks = self._fingerprint is not None
         self._bg_seen: dict[str, tuple[bool, int]] = {}  # per sensor: (background ready, re-learnt count) checked
         self._foreign: dict[str, str] = {}  # per sensor: why it is not the calibration's sensor ("" = it is)
+        from .background_check import reference_thumb
+
+        self._ref_thumb, self._ref_what, self._ref_min = reference_thumb(model)
+        self._bg_checked: dict[str, np.ndarray] = {}  # per sensor: the given background image checked
+        self._pressed: dict[str, str] = {}  # per sensor: why its given background looks pressed ("" = it does not)
         _attach(model)  # last: a runtime that failed to build does not count as a user
 
     # -- public ---------------------------------------------------------------------------
@@ -601,6 +606,8 @@ class ForceRuntime:
                                                          "(LEDs off, lens covered?)"), start))
             return None
         g = s.gate.update(frame)
+        if s.gate.background_image is not None and self._bg_checked.get(s.name) is not s.gate.background_image:
+            self._check_background(s)  # once per background given to the gate
         if self._sensor_checks:  # once per new background: is this the sensor the bundle was calibrated on?
             self._check_sensor(s, frame, g)
         if s.depth is not None and (getattr(s.depth, "needs_reference", False)
@@ -616,6 +623,11 @@ class ForceRuntime:
             return None
         if not g.contact:
             detail = "" if g.background_ready else "learning background"
+            if self._pressed.get(s.name):  # the given background holds a press: "no contact" is not known
+                out.append(self._finish(self._reading(s, tf, Flags.NO_CONTACT | Flags.BACKGROUND_MISMATCH,
+                                                      latency=lat, detail=self._pressed[s.name], area=g.area_px),
+                                        start))
+                return None
             out.append(self._finish(self._reading(s, tf, Flags.NO_CONTACT, 0.0, lat, detail, g.area_px), start))
             return None
         p = _Pending(s, tf, frame, g, start, lat.source_ms, lat.gate_ms)
@@ -640,6 +652,37 @@ class ForceRuntime:
             p.depth = res.depth
         return p
 
+    def check_backgrounds(self) -> dict[str, str]:
+        """Check every sensor's given background (``ContactGate.capture_background``) for a
+        press now (the runtime also does on the first frame after one is given): sensor ->
+        why it looks pressed, or "" (fine, or no reference in the bundle to check it against;
+        edge/background_check.py). While it looks pressed, the sensor's ``no_contact``
+        readings carry ``background_mismatch`` and no force."""
+        for s in self.sensors:
+            if s.gate.background_image is not None and self._bg_checked.get(s.name) is not s.gate.background_image:
+                self._check_background(s)
+        return {s.name: self._pressed.get(s.name, "") for s in self.sensors}
+
+    def _check_background(self, s: Sensor) -> None:
+        from .background_check import pressed_background
+
+        img = s.gate.background_image
+        assert img is not None
+        self._bg_checked[s.name] = img
+        origin = f"sensor {s.name}: the background given ({s.gate.background_origin or 'capture_background'})"
+        if self._ref_thumb is None:
+            self._pressed[s.name] = ""
+            if not getattr(self, "_unchecked_said", False):
+                self._unchecked_said = True
+                _log.warning("%s cannot be checked for a press: the bundle carries no no-contact image of the sensor "
+                             "(calibrate-force --background, or export/quantize/compress --background, record one)",
+                             origin)
+            return
+        why = pressed_background(img, self._ref_thumb, self._ref_what, origin, min_cells=self._ref_min)
+        self._pressed[s.name] = why
+        if why:
+            _log.warning("%s; its no_contact readings are flagged background_mismatch (no force)", why)
+
     def _check_sensor(self, s: Sensor, frame: np.ndarray, g: GateResult) -> None:
         """Compare the sensor with the one the force calibration was fitted on, once per new
         background (learnt, given or re-learnt), on the first no-contact frame that fits it:
@@ -653,8 +696,9 @@ class ForceRuntime:
         attached = getattr(s.source, "attached", None)
         serial = str(getattr(s.source, "serial", "") or getattr(attached, "serial", "") or "")
         known = bool(serial and self._fingerprint.serial)  # two serials decide at once
-        if s.gate.background_ready and not known and (g.contact or g.mismatch or g.invalid):
-            return  # wait for a no-contact frame that fits the background
+        if s.gate.background_ready and not known and (g.contact or g.mismatch or g.invalid
+                                                      or self._pressed.get(s.name)):
+            return  # wait for a no-contact frame that fits a background without a press
         self._bg_seen[s.name] = state
         if not s.gate.background_ready:
             return

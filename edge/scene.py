@@ -1005,6 +1005,9 @@ def build_scene(scene: Scene, clock: Clock | None = None, warn: Callable[[str], 
         runtime = ForceRuntime(sensors, model, opts, clock=clock, backend=backend, owns_model=True,
                                depth_factory=lambda: build_depth_stage(
                                    scene.depth, getattr(getattr(model, "bundle", None), "manifest", None)))
+        for why in runtime.check_backgrounds().values():  # a given background that holds a press
+            if why:
+                warn(why)
         for sensor in runtime.sensors:
             # Paper depth mode: the zero-depth reference is the gate's background. Given as an
             # image, it is set here; learnt from frames, the runtime sets it once learnt.
