@@ -309,6 +309,9 @@ def page(argv: list[str], frames: int = 2000, check: int = 10, quick: bool = Fal
     red_rows = reduction_timings(200 if quick else 2000)
     acc = accuracy()
     graph = graph_rows(100 if quick else 400)
+    from .graph_profile import measure as graph_variants
+
+    variants = graph_variants(300 if quick else 2000)
     checks = check_runs(check, 200 if quick else 1000)
     machine = describe_machine()
     passed = sum(1 for r in checks if r[4] == "PASS")
@@ -334,6 +337,10 @@ def page(argv: list[str], frames: int = 2000, check: int = 10, quick: bool = Fal
                             acc),
              "", "## The graph, node by node (onnxruntime profiler, us per run, median)", "",
              markdown_table(["graph", "op", "us", "share", "nodes"], graph),
+             "", "Variants of the default graph, timed round-robin in one run (`python -m benchmarks.graph_profile`; "
+                 "ratio to the shipped graph with the runtime's session options). Kept: int8, NHWC uint8 input, "
+                 "ORT_ENABLE_ALL; the fp32 row's difference includes the int8 graph's activation clipping:", "",
+             markdown_table(["variant", "p50 us", "p99 us", "p50 / shipped", "max |diff| N"], variants),
              "", f"## The under-1 ms check, {len(checks)} runs back to back ({passed}/{len(checks)} PASS)", "",
              markdown_table(["run", "bundle", "total p50 ms", "total p99 ms", "verdict", "machine"], checks)]
     return "\n".join(parts) + "\n"
