@@ -1134,6 +1134,38 @@ def run_catalogue(examples: int = 100, log: Callable[[str], None] = print) -> li
         t = category("replay folder deleted mid-run")
         for paced in (False, True):
             t.add(probe_replay_vanish(base, paced))
+
+        from . import robustness_issue19 as i19
+
+        t = category("inputs never destroyed (each writing verb aimed at its inputs, --force included)")
+        ifolder = base / "inputs"
+        ifolder.mkdir()
+        i19.run_cases(i19.inputs_cases(ifolder), t.add)
+
+        t = category("labelled presses (duplicates, colliding names, .jpg, comma, unit, x10, FIFO)")
+        pfolder = base / "presses"
+        pfolder.mkdir()
+        i19.run_cases(i19.presses_cases(pfolder), t.add)
+
+        depth = i19.depth_cases(base)
+        t = category("calibrate-depth radius and scale")
+        if depth:
+            i19.run_cases(depth, t.add)
+        else:
+            t.note = "not run: the shared ball-press data is absent"
+
+        t = category("MCAP log of a run stopped by SIGTERM, SIGINT, kill -9 (mcap library readers)")
+        if i19.mcap_available():
+            replay = i19.mcap_replay(base)
+            for sig in (signal.SIGTERM, signal.SIGINT, signal.SIGKILL):
+                t.add(i19.probe_mcap_signal(base, replay, sig))
+        else:
+            t.note = "not run: the 'mcap' extra is not installed"
+
+        t = category("smaller items (--max-frames 0, scene topic, VGA background, depth mapping, nan flags)")
+        sm = base / "smaller"
+        sm.mkdir()
+        i19.run_cases(i19.smaller_cases(sm), t.add)
     return tallies
 
 
@@ -1184,6 +1216,20 @@ Rules the counts are judged by (docs match code: `edge/labels.py`, `export/check
   `onnx_file`, `inputs`, `output`, `format_version`) must be refused by `load_bundle` or, at
   the latest, by `OnnxForceModel` and `bundle verify`; any other mutation may load or be
   refused, but never with another exception type.
+
+Issue 19's cases (`benchmarks/robustness_issue19.py`): every writing verb aimed at its own
+inputs (`--out` = the folder holding the source bundle or checkpoint, = the presses folder, =
+the source itself, inside it; `--force` included) must refuse with exit 2 and leave every input
+byte for byte (else **data lost**); an existing output is replaced only with `--force`; a FIFO
+as `--background` or label must be refused at once (else **hang**, 20 s). Labelled presses:
+the same frame twice, `01500.png` beside `1500.png`, a `.jpg` press, labels with a decimal
+comma or a unit must be refused naming the files; labels ten times too large must be warned
+about. calibrate-depth: a radius or scale that is 0, negative or not finite, and a 10x (or
+0.1x) wrong scale, on both shared ball-press sets, must exit 2 naming the flag. MCAP: a real
+`tactile-force run --out r.csv --out r.mcap` (replay at 20 fps) stopped after 12 readings by
+SIGTERM, SIGINT or kill -9; `mcap.reader.make_reader(f).iter_messages()` and
+`NonSeekingReader(f).iter_messages()` must return every reading the CSV holds (kill -9: at
+most the one in flight fewer) and SIGTERM / SIGINT must leave a finalized file (a summary).
 
 Fault cases: `kill -9` of a recording (a subprocess, `tests/robustness/record_kill_worker.py`)
 at each write phase of a sample (image temp file, image renamed, half a meta line, meta line,
@@ -1248,10 +1294,46 @@ COVERAGE = [
 ]
 
 
+#: Issue 19 "What was measured" bullets (this helper's part) -> the tests that fail on c1733e6 and pass now.
+COVERAGE_19 = [
+    ("Labels with a decimal comma (`1,08` read as 1.0 N) accepted by calibrate-force",
+     "tests/robustness/test_labels_grammar.py::test_decimal_comma_and_units_are_errors_naming_the_file, "
+     "::test_calibrate_force_refuses_decimal_comma_labels"),
+    ("`calibrate-depth --ball-radius-mm 0 / -3`, `--px-per-mm 0` exit 0; a 10x wrong scale reports a lower error",
+     "tests/depth/test_calibrate_depth_args.py::test_impossible_radius_or_scale_exits_2_and_writes_nothing, "
+     "::test_a_ten_times_wrong_scale_is_refused_naming_the_flags"),
+    ("calibrate-force / export / quantize `--out` onto or around their inputs with `--force` destroyed them",
+     "tests/robustness/test_inputs_never_destroyed.py::"
+     "test_calibrate_force_out_holding_the_source_is_refused_with_force, "
+     "::test_calibrate_force_out_onto_the_presses_is_refused_with_force, "
+     "::test_export_out_holding_the_checkpoint_is_refused_with_force, "
+     "::test_quantize_onto_its_source_is_refused_with_force, "
+     "::test_force_never_replaces_a_folder_that_is_not_a_bundle"),
+    ("`run --out` overwrites an existing CSV or MCAP without `--force`",
+     "tests/robustness/test_inputs_never_destroyed.py::test_run_out_refuses_an_existing_file_without_force"),
+    ("After SIGTERM the MCAP log is unfinalized (0 messages); after kill -9 the library's reader reads 0",
+     "tests/robustness/test_mcap_killed.py::test_sigterm_and_sigint_finalize_the_log, "
+     "::test_kill_9_leaves_every_written_reading_to_the_library_readers"),
+    ("A FIFO as `--background` or as a label file blocks forever",
+     "tests/robustness/test_inputs_never_destroyed.py::test_fifo_background_is_refused_at_once, "
+     "tests/robustness/test_labels_grammar.py::test_fifo_label_is_refused_without_blocking"),
+    ("Duplicated presses give leave-one-out RE 0.001; `01500.png` beside `1500.png`; a `.jpg` press skipped",
+     "tests/robustness/test_labels_grammar.py::test_duplicated_presses_are_refused_naming_both_files, "
+     "::test_zero_padded_name_beside_the_plain_one_is_an_error_naming_both, "
+     "::test_a_press_that_would_be_skipped_is_an_error_naming_it"),
+    ("`--budget-ms nan`; labels x10 without a warning; a 640x480 `--background`; a D bundle with `--source` "
+     "and no mapping flag; `--max-frames 0`; scene `topic = \"/a//b\"` passes `scene show`",
+     "tests/robustness/test_smaller_items.py (every test), "
+     "tests/robustness/test_labels_grammar.py::test_labels_ten_times_too_large_give_a_warning_naming_the_cause, "
+     "tests/edge/test_scene_validation.py::test_bad_flags_exit_2_with_a_clear_line"),
+]
+
 BASELINE_COMMIT = "9ed225d"
+#: Commits the catalogue is also run against: (commit, what it was before).
+BASELINES = [(BASELINE_COMMIT, "before issue 11"), ("c1733e6", "before issue 19")]
 
 
-def page(tallies: list[Tally], command: str, examples: int, baseline: str = "") -> str:
+def page(tallies: list[Tally], command: str, examples: int, baseline: str | dict[str, str] = "") -> str:
     from .machine import describe_machine, header
 
     disk = next((t.note for t in tallies if t.note), "")
@@ -1261,19 +1343,30 @@ def page(tallies: list[Tally], command: str, examples: int, baseline: str = "") 
              f"Disk full was made with: {disk}.", ""]
     if bad:
         lines += ["## Cases that went wrong", ""] + [f"* {b}" for b in bad] + [""]
-    if baseline:
-        lines += [f"## The same catalogue at commit {BASELINE_COMMIT} (before issue 11)", "",
-                  f"Command: `python -m benchmarks.robustness_baseline {BASELINE_COMMIT} --examples {examples}` "
+    baselines = {BASELINE_COMMIT: baseline} if isinstance(baseline, str) else baseline
+    for commit, what in BASELINES:
+        if not baselines.get(commit):
+            continue
+        lines += [f"## The same catalogue at commit {commit} ({what})", "",
+                  f"Command: `python -m benchmarks.robustness_baseline {commit} --examples {examples}` "
                   "(that commit's package, this checkout's cases and oracles; run by the command above).", "",
-                  baseline, "",
-                  "At that commit some categories fail for reasons beyond the one tested (e.g. `record --repair` "
-                  "did not exist, so every truncation case is also a usage error there); a case counts once, "
+                  baselines[commit], "",
+                  "At that commit some categories fail for reasons beyond the one tested (e.g. at 9ed225d "
+                  "`record --repair` did not exist, so every truncation case is also a usage error there; a "
+                  "case of a later issue may also fail on a flag that did not exist yet); a case counts once, "
                   "under the worst outcome.", ""]
     lines += ["## Issue 11's findings and the tests that pin them", "",
               "Each test fails on commit 9ed225d's behaviour and passes now; (lead) and (B1) name the "
               "helpers whose code and tests cover that part.", "",
               "| finding at 9ed225d | tests |", "|---|---|"]
     lines += [f"| {a} | {b} |" for a, b in COVERAGE]
+    lines += ["", "## Issue 19's findings and the tests that pin them", "",
+              "Each test fails on commit c1733e6 (checked by running it against that commit's package: "
+              "`benchmarks.robustness.use_package_root`, as the baseline does) and passes now. The other part "
+              "of issue 19 (shared models, data statistics, sensor fingerprint, background contact check, "
+              "bundle verify, compress decisions) is pinned by its own helper's tests.", "",
+              "| finding at c1733e6 | tests |", "|---|---|"]
+    lines += [f"| {a} | {b} |" for a, b in COVERAGE_19]
     lines += ["", "The suite itself: `python -m pytest -q tests/robustness` (bounded hypothesis runs, "
               "30 examples per property test)."]
     return "\n".join(lines) + "\n"
@@ -1295,16 +1388,17 @@ def run(args, argv: list[str]) -> int:
     print(table(tallies))
     for b in failures(tallies):
         print(f"  ! {b}")
-    baseline = ""
+    baseline: dict[str, str] = {}
     if not args.quick:
         from .robustness_baseline import baseline_table
 
-        print(f"the same catalogue at {BASELINE_COMMIT} ...", flush=True)
-        try:
-            baseline = baseline_table(BASELINE_COMMIT, examples)
-        except (subprocess.CalledProcessError, subprocess.TimeoutExpired, RuntimeError, OSError) as exc:
-            baseline = f"(not run: {str(exc)[:300]})"
-        print(baseline)
+        for commit, _what in BASELINES:
+            print(f"the same catalogue at {commit} ...", flush=True)
+            try:
+                baseline[commit] = baseline_table(commit, examples)
+            except (subprocess.CalledProcessError, subprocess.TimeoutExpired, RuntimeError, OSError) as exc:
+                baseline[commit] = f"(not run: {str(exc)[:300]})"
+            print(baseline[commit])
     out.mkdir(parents=True, exist_ok=True)
     dest = out / "robustness.md"
     dest.write_text(page(tallies, command_line(argv), examples, baseline))

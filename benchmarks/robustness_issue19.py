@@ -1,0 +1,536 @@
+"""Issue 19's cases for the robustness catalogue (benchmarks/robustness.py): inputs that a
+writing verb must never destroy, labels and presses checked where they enter, calibrate-depth
+radii and scales, MCAP logs stopped by SIGTERM / SIGINT / kill -9, and the smaller items.
+
+Each case runs the user's command through the CLI in-process (or, for signals and possible
+hangs, in a subprocess / a watched thread) and is classified like every other case:
+``data lost`` when any input's bytes changed (or an MCAP log lost a written reading),
+``hang`` when it did not answer in time, ``silent wrong`` when a bad input was taken.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import logging
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from .robustness import (
+    REPO,
+    Outcome,
+    Verdict,
+    accepted,
+    cli_verdict,
+    default_bundle_dir,
+    make_dataset,
+    refusal,
+    with_timeout,
+    worst,
+    write_frame_png,
+)
+
+TF_CLI = REPO / "tests" / "robustness" / "tf_cli.py"
+SHARED = Path(os.environ.get("TACTILE_FORCE_SHARED_DATA", REPO.parent / "shared" / "data"))
+HANG_S = 20.0
+
+
+def digest(p: Path) -> dict[str, str] | str | None:
+    """sha256 of a file, {relative path: sha256} of a folder, None when absent."""
+    if p.is_dir():
+        return {str(q.relative_to(p)): hashlib.sha256(q.read_bytes()).hexdigest()
+                for q in sorted(p.rglob("*")) if q.is_file()}
+    if p.is_file():
+        return hashlib.sha256(p.read_bytes()).hexdigest()
+    return None
+
+
+def guarded(argv: list[str], watched: list[Path], should_fail: bool, names: tuple[str, ...] = (),
+            timeout_s: float = 180.0) -> Verdict:
+    """``tactile-force ARGV`` in-process; DATA_LOST when a watched input changed."""
+    before = {p: digest(p) for p in watched}
+    v = with_timeout(lambda: cli_verdict(argv, {2} if should_fail else {0}, should_fail, names), timeout_s)
+    changed = [str(p) for p in watched if digest(p) != before[p]]
+    if changed:
+        return Verdict(Outcome.DATA_LOST, f"{' '.join(argv)}: input changed: {changed}")
+    return v
+
+
+def _unblock(fifo: Path) -> None:
+    """Release a reader blocked opening ``fifo`` (a hung case must not keep its thread)."""
+    try:
+        fd = os.open(fifo, os.O_WRONLY | os.O_NONBLOCK)
+        os.close(fd)
+    except OSError:
+        pass
+
+
+def presses_folder(dest: Path) -> Path:
+    """The 11 real AUROVA presses (or 11 synthetic ones when the shared data is absent)."""
+    src = SHARED / "aurova_digit_grasp"
+    if src.is_dir():
+        return Path(shutil.copytree(src, dest))
+    return make_dataset(dest, n=11, forces=[1.0 + i for i in range(11)])
+
+
+def tiny_checkpoint(dest: Path) -> Path:
+    import torch
+    from tactile_force.export import ModelSpec, build_model
+    from tactile_force.export.checkpoint import save_checkpoint
+
+    torch.manual_seed(0)
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    return save_checkpoint(dest, build_model("rgbmod", 0.125), ModelSpec("rgbmod", 0.125, 1 / 8))
+
+
+# ================================================================== inputs never destroyed
+def inputs_cases(folder: Path) -> list[tuple[str, Callable[[], Verdict]]]:
+    """(what, probe) for every writing verb pointed at its own inputs. Each destructive case
+    gets fresh copies of its inputs (a case that destroyed them must not change the next)."""
+    from .robustness import run_cli
+
+    ckpt0 = tiny_checkpoint(folder / "ckpt0" / "ckpt.pth")
+    fp32_0 = folder / "fp32_0"
+    rc, _, err = run_cli(["export", str(ckpt0), "--out", str(fp32_0), "--tolerance", "1e-3"])
+    if rc != 0:
+        raise RuntimeError(f"could not export the tiny fp32 bundle: {err[-300:]}")
+    presses0 = presses_folder(folder / "presses0")
+    n = iter(range(1000))
+
+    def fresh() -> tuple[Path, Path, Path, Path, Path]:
+        """(holder, source bundle in it, presses, run folder with ckpt.pth, fp32 bundle)."""
+        d = folder / f"case{next(n)}"
+        holder = d / "work"
+        shutil.copytree(default_bundle_dir(), holder / "src")
+        (holder / "notes.txt").write_text("my notes\n")
+        presses = Path(shutil.copytree(presses0, d / "presses"))
+        run1 = d / "run1"
+        run1.mkdir()
+        shutil.copy(ckpt0, run1 / "ckpt.pth")
+        (run1 / "log.txt").write_text("training log\n")
+        fp32 = Path(shutil.copytree(fp32_0, d / "fp32"))
+        return holder, holder / "src", presses, run1, fp32
+
+    def calib(out: Callable[[Path, Path, Path], Path], force: bool, names: Callable[[Path], tuple[str, ...]]
+              ) -> Verdict:
+        holder, src, presses, _, _ = fresh()
+        o = out(holder, src, presses)
+        return guarded(["calibrate-force", str(src), "--data", str(presses), "--out", str(o)]
+                       + (["--force"] if force else []), [holder, presses], True, names(o))
+
+    def export_into_run() -> Verdict:
+        _, _, _, run1, _ = fresh()
+        return guarded(["export", str(run1 / "ckpt.pth"), "--out", str(run1), "--force"], [run1], True, (str(run1),))
+
+    def quantize(inside: bool) -> Verdict:
+        _, _, _, _, fp32 = fresh()
+        out = fp32 / "q" if inside else fp32
+        return guarded(["quantize", str(fp32), "--out", str(out), "--mode", "int8-dynamic"]
+                       + ([] if inside else ["--force"]), [fp32], True, ("--out",) if inside else (str(fp32),))
+
+    def compress_into_frames() -> Verdict:
+        _, _, _, run1, _ = fresh()
+        frames = make_dataset(run1.parent / "frames", n=3)
+        return guarded(["compress", str(run1 / "ckpt.pth"), "--frames", str(frames), "--out", str(frames),
+                        "--epochs", "1"], [frames, run1], True, (str(frames),))
+    replay = make_dataset(folder / "replay", n=3)
+    old_csv = folder / "yesterday.csv"
+    old_csv.write_text("yesterday's readings\n")
+    old_jsonl = folder / "yesterday.jsonl"
+    old_jsonl.write_text("{}\n")
+    old_npz = folder / "cal.npz"
+    old_npz.write_bytes(b"keep")
+    fifo = folder / "bg_fifo.png"
+    if hasattr(os, "mkfifo"):
+        os.mkfifo(fifo)
+
+    cases: list[tuple[str, Callable[[], Verdict]]] = [
+        ("calibrate-force --out <folder holding the source> --force",
+         lambda: calib(lambda h, s, p: h, True, lambda o: (str(o),))),
+        ("calibrate-force --out <the presses folder> --force",
+         lambda: calib(lambda h, s, p: p, True, lambda o: (str(o),))),
+        ("calibrate-force --out <inside the source bundle>",
+         lambda: calib(lambda h, s, p: s / "cal", False, lambda o: ("--out",))),
+        ("export --out <folder holding the checkpoint> --force", export_into_run),
+        ("quantize B --out B --force", lambda: quantize(False)),
+        ("quantize B --out B/inside", lambda: quantize(True)),
+        ("run --out <existing CSV> without --force", lambda: guarded(
+            ["run", "--source", str(replay), "--out", str(old_csv)], [old_csv, replay], True, (str(old_csv),))),
+        ("run --out <existing JSONL> --force (valid)", lambda: guarded(
+            ["run", "--source", str(replay), "--out", str(old_jsonl), "--force"], [replay], False)),
+        ("run --out <inside the replay folder>", lambda: guarded(
+            ["run", "--source", str(replay), "--out", str(replay / "r.csv")], [replay], True, ("--out",))),
+        ("compress --out <the frames folder>", compress_into_frames),
+        ("write_bundle(overwrite=True) onto a folder of other files", lambda: _probe_write_bundle(folder)),
+    ]
+    gs = SHARED / "gelsight_mini_ball_presses.npz"
+    if gs.is_file():
+        cases.append(("calibrate-depth -o <existing file> without --force", lambda: guarded(
+            ["calibrate-depth", str(gs), "--ball-radius-mm", "2.0", "--px-per-mm", "33.898", "-o", str(old_npz)],
+            [old_npz], True, (str(old_npz),))))
+    if fifo.exists():
+        cases.append(("run --background <a FIFO>", lambda: _probe_fifo_run(replay, fifo)))
+    return cases
+
+
+def _probe_write_bundle(folder: Path) -> Verdict:
+    from tactile_force.edge.bundle import load_bundle, write_bundle
+
+    mine = folder / "thesis"
+    mine.mkdir(exist_ok=True)
+    (mine / "thesis.tex").write_text("x")
+    before = digest(mine)
+    b = load_bundle(default_bundle_dir())
+    try:
+        write_bundle(mine, b.onnx_path.read_bytes(), b.manifest, overwrite=True)
+        v = accepted(True, "replaced a folder of other files")
+    except BaseException as exc:  # noqa: BLE001
+        v = refusal(exc, True, names=(str(mine),))
+    if digest(mine) != before:
+        return Verdict(Outcome.DATA_LOST, f"write_bundle replaced {mine}")
+    return v
+
+
+def _probe_fifo_run(replay: Path, fifo: Path) -> Verdict:
+    try:
+        p = subprocess.run([sys.executable, str(TF_CLI), "run", "--source", str(replay), "--background", str(fifo),
+                            "--max-frames", "2"], capture_output=True, text=True, timeout=HANG_S)
+    except subprocess.TimeoutExpired:
+        return Verdict(Outcome.HANG, f"run --background FIFO: no answer in {HANG_S:g} s")
+    if "Traceback" in p.stderr:
+        return Verdict(Outcome.TRACEBACK, p.stderr[-200:])
+    if p.returncode == 2 and str(fifo) in p.stderr:
+        return Verdict(Outcome.CLEAR, p.stderr.strip()[-160:])
+    return Verdict(Outcome.SILENT_WRONG if p.returncode == 0 else Outcome.TRACEBACK,
+                   f"exit {p.returncode}: {p.stderr[-200:]}")
+
+
+# ================================================================== labels and presses
+def _rewrite_labels(root: Path, fn: Callable[[float], str]) -> None:
+    for f in sorted((root / "forces").iterdir()):
+        first, *rest = f.read_text().splitlines()
+        f.write_text("\n".join([fn(float(first)), *rest]) + "\n")
+
+
+def presses_cases(folder: Path) -> list[tuple[str, Callable[[], Verdict]]]:
+    bundle = str(default_bundle_dir())
+
+    def calib(data: Path, names: tuple[str, ...]) -> Verdict:
+        out = data.parent / (data.name + "_cal")
+        return guarded(["calibrate-force", bundle, "--data", str(data), "--out", str(out)], [data], True, names)
+
+    def duplicated() -> Verdict:
+        data = presses_folder(folder / "dup")
+        for k in (1, 2):
+            for img in sorted((data / "images").glob("*.png")):
+                n = int(img.stem)
+                shutil.copy(img, data / "images" / f"{n + 100000 * k}.png")
+                shutil.copy(data / "forces" / f"force_{n}.txt", data / "forces" / f"force_{n + 100000 * k}.txt")
+        return calib(data, ("the same frame twice",))
+
+    def dataset_refusal(name: str, make: Callable[[Path], tuple[str, ...]]) -> Verdict:
+        from tactile_force.edge.dataset import AuthorsDataset
+
+        data = presses_folder(folder / name)
+        names = make(data)
+        try:
+            ds = AuthorsDataset(data)
+            return accepted(True, f"read {len(ds)} samples")
+        except BaseException as exc:  # noqa: BLE001
+            return refusal(exc, True, names=names)
+
+    def padded(data: Path) -> tuple[str, ...]:
+        first = sorted((data / "images").glob("*.png"), key=lambda p: int(p.stem))[0]
+        other = sorted((data / "images").glob("*.png"), key=lambda p: int(p.stem))[1]
+        shutil.copy(other, data / "images" / f"0{first.name}")
+        return (f"0{first.name}", first.name)
+
+    def jpg(data: Path) -> tuple[str, ...]:
+        import cv2
+
+        img = cv2.imread(str(sorted((data / "images").glob("*.png"))[0]))
+        cv2.imwrite(str(data / "images" / "99999.jpg"), img)
+        return ("99999.jpg",)
+
+    def comma() -> Verdict:
+        data = presses_folder(folder / "comma")
+        _rewrite_labels(data, lambda v: f"{v:.2f}".replace(".", ","))
+        return calib(data, ("decimal comma",))
+
+    def unit() -> Verdict:
+        data = presses_folder(folder / "unit")
+        _rewrite_labels(data, lambda v: f"{v:.2f} N")
+        return calib(data, ("unit",))
+
+    def times_ten() -> Verdict:
+        data = presses_folder(folder / "x10")
+        _rewrite_labels(data, lambda v: f"{10 * v:.4f}")
+        seen: list[str] = []
+
+        class Keep(logging.Handler):
+            def emit(self, record: logging.LogRecord) -> None:
+                seen.append(record.getMessage())
+
+        log = logging.getLogger("tactile_force")
+        h = Keep(logging.WARNING)
+        log.addHandler(h)
+        try:
+            v = guarded(["calibrate-force", bundle, "--data", str(data), "--out", str(folder / "x10_cal")], [data],
+                        False)
+        finally:
+            log.removeHandler(h)
+        if v.outcome is Outcome.DATA_LOST:
+            return v
+        if any("unit" in m and str(data) in m for m in seen):
+            return Verdict(Outcome.CLEAR, f"warned: {seen[-1][:160]}")
+        return Verdict(Outcome.SILENT_WRONG, f"labels x10 taken without a warning ({v})")
+
+    def fifo_label() -> Verdict:
+        from tactile_force.edge.labels import read_force_file
+
+        p = folder / "fifo_label" / "force_0.txt"
+        p.parent.mkdir(parents=True, exist_ok=True)
+        os.mkfifo(p)
+
+        def read() -> Verdict:
+            try:
+                return accepted(True, f"read {read_force_file(p)!r} from a FIFO")
+            except BaseException as exc:  # noqa: BLE001
+                return refusal(exc, True, names=("force_0.txt",))
+
+        v = with_timeout(read, HANG_S)
+        if v.outcome is Outcome.HANG:
+            _unblock(p)
+        return v
+
+    cases: list[tuple[str, Callable[[], Verdict]]] = [
+        ("presses copied 3 times -> calibrate-force", duplicated),
+        ("01500.png beside 1500.png", lambda: dataset_refusal("padded", padded)),
+        ("a .jpg press among the PNGs", lambda: dataset_refusal("jpg", jpg)),
+        ("labels with a decimal comma -> calibrate-force", comma),
+        ("labels with a unit (1.08 N) -> calibrate-force", unit),
+        ("labels x10 (wrong unit) -> calibrate-force warns", times_ten),
+    ]
+    if hasattr(os, "mkfifo"):
+        cases.append(("a FIFO label file", fifo_label))
+    return cases
+
+
+# ================================================================== calibrate-depth
+def depth_cases(folder: Path) -> list[tuple[str, Callable[[], Verdict]]]:
+    gs = SHARED / "gelsight_mini_ball_presses.npz"
+    fots = SHARED / "fots_digit" / "ball_presses"
+    bg = SHARED / "digit_backgrounds" / "fots_digit_bg.png"
+    if not (gs.is_file() and fots.is_dir() and bg.is_file()):
+        return []
+    sets = [("GelSight Mini", [str(gs)], 2.0, 33.898), ("DIGIT (FOTS)", [str(fots), "--background", str(bg)], 2.35,
+                                                         19.58)]
+    cases: list[tuple[str, Callable[[], Verdict]]] = []
+    k = iter(range(1000))
+    for name, src, radius, scale in sets:
+        bad = [("--ball-radius-mm", "0", str(scale)), ("--ball-radius-mm", "-3", str(scale)),
+               ("--ball-radius-mm", "nan", str(scale)), ("--px-per-mm", str(radius), "0"),
+               ("--px-per-mm", str(radius), "inf"), ("--px-per-mm", str(radius), str(scale * 10)),
+               ("--px-per-mm", str(radius), str(scale / 10))]
+        for flag, r, s in bad:
+            out = folder / f"depth_{next(k)}.npz"
+            cases.append((f"{name}: radius {r} mm, {s} px/mm", lambda src=src, r=r, s=s, flag=flag, out=out: guarded(
+                ["calibrate-depth", *src, "--ball-radius-mm", r, "--px-per-mm", s, "-o", str(out)], [], True,
+                (flag,))))
+        out = folder / f"depth_{next(k)}.npz"
+        cases.append((f"{name}: the true radius and scale (valid)", lambda src=src, radius=radius, scale=scale,
+                      out=out: guarded(["calibrate-depth", *src, "--ball-radius-mm", str(radius), "--px-per-mm",
+                                        str(scale), "-o", str(out)], [], False)))
+    return cases
+
+
+# ================================================================== MCAP killed
+def _mcap_forces(path: Path, sequential: bool) -> list[float]:
+    from mcap.reader import NonSeekingReader, make_reader
+    from tactile_force.edge.outputs.ros2_messages import WrenchStamped
+
+    with open(path, "rb") as fh:
+        reader = NonSeekingReader(fh) if sequential else make_reader(fh)
+        return [WrenchStamped.deserialize(m.data).wrench.force.z
+                for _, ch, m in reader.iter_messages() if ch.topic == "/tactile/force"]
+
+
+def _csv_count(path: Path) -> int:
+    return max(0, len(path.read_text().splitlines()) - 1) if path.is_file() else 0
+
+
+def mcap_replay(folder: Path) -> Path:
+    """198 frames (noise blocks on a flat gel) in the authors' layout: 10 s at --fps 20."""
+    import cv2
+    from tactile_force.edge.dataset import AuthorsDatasetWriter
+
+    root = folder / "mcap_replay"
+    rng = np.random.default_rng(3)
+    with AuthorsDatasetWriter(root) as w:
+        for i in range(198):
+            frame = np.full((320, 240, 3), 110, np.uint8)
+            if i % 3:
+                frame[120:200, 70:170] = rng.integers(60, 200, (80, 100, 3), dtype=np.uint8)
+            w.write(cv2.GaussianBlur(frame, (5, 5), 0), 1.0 + i % 9)
+    return root
+
+
+def probe_mcap_signal(folder: Path, replay: Path, sig: int) -> Verdict:
+    """A real ``tactile-force run --out r.csv --out r.mcap`` stopped by ``sig`` after 12 readings;
+    the mcap library's readers must return every reading the CSV holds (kill -9: at most the one
+    in flight fewer), and SIGTERM / SIGINT must leave a finalized file (summary)."""
+    name = signal.Signals(sig).name
+    d = folder / f"mcap_{name}"
+    shutil.rmtree(d, ignore_errors=True)
+    d.mkdir(parents=True)
+    out_csv, out_mcap = d / "r.csv", d / "r.mcap"
+    proc = subprocess.Popen([sys.executable, str(TF_CLI), "run", "--source", str(replay), "--fps", "20",
+                             "--out", str(out_csv), "--out", str(out_mcap)],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        end = time.monotonic() + 120
+        while time.monotonic() < end and proc.poll() is None and _csv_count(out_csv) < 12:
+            time.sleep(0.05)
+        if proc.poll() is not None:
+            return Verdict(Outcome.TRACEBACK, f"{name}: run ended before the signal: {proc.stderr.read()[-200:]}")
+        proc.send_signal(sig)
+        _, err = proc.communicate(timeout=60)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.communicate()
+        return Verdict(Outcome.HANG, f"{name}: run did not stop within 60 s")
+    written = _csv_count(out_csv)
+    verdicts = []
+    for sequential in (False, True):
+        who = "NonSeekingReader" if sequential else "make_reader"
+        try:
+            got = len(_mcap_forces(out_mcap, sequential))
+        except Exception as exc:  # noqa: BLE001 - the library refusing the file is the finding
+            verdicts.append(Verdict(Outcome.DATA_LOST, f"{name}: {who} read nothing: {type(exc).__name__}: "
+                                                       f"{str(exc)[:120]} ({written} readings written)"))
+            continue
+        lost = written - got
+        allowed = 1 if sig == signal.SIGKILL else 0
+        if lost > allowed:
+            verdicts.append(Verdict(Outcome.DATA_LOST, f"{name}: {who} read {got} of {written} readings"))
+        else:
+            verdicts.append(Verdict(Outcome.ACCEPTED, f"{name}: {who} read {got} of {written} readings"))
+    if sig != signal.SIGKILL:
+        from mcap.reader import make_reader
+
+        try:
+            with open(out_mcap, "rb") as fh:
+                summary = make_reader(fh).get_summary()
+        except Exception as exc:  # noqa: BLE001
+            summary = None
+            err += f" {type(exc).__name__}: {exc}"
+        if summary is None or not summary.chunk_indexes:
+            verdicts.append(Verdict(Outcome.DATA_LOST, f"{name}: the log was not finalized (no summary): "
+                                                       f"{err[-160:]}"))
+    return worst(verdicts)
+
+
+# ================================================================== smaller items
+def _d_bundle(dest: Path) -> Path:
+    """A real depth (D) bundle whose manifest records no mapping: force = mean(depth) / 51."""
+    import onnx
+    from onnx import TensorProto, helper
+    from tactile_force.edge.bundle import write_bundle
+    from tactile_force.edge.manifest import InputKind, InputSpec, Manifest, OutputSpec, Provenance
+
+    nodes = [helper.make_node("Cast", ["depth"], ["d"], to=TensorProto.FLOAT),
+             helper.make_node("ReduceMean", ["d"], ["m"], axes=[1, 2, 3], keepdims=0),
+             helper.make_node("Mul", ["m", "k"], ["f"]),
+             helper.make_node("Reshape", ["f", "shape"], ["force"])]
+    graph = helper.make_graph(nodes, "d_mean", [helper.make_tensor_value_info("depth", TensorProto.UINT8,
+                                                                              ["N", 320, 240, 1])],
+                              [helper.make_tensor_value_info("force", TensorProto.FLOAT, ["N", 1])],
+                              [helper.make_tensor("k", TensorProto.FLOAT, [], [1 / 51.0]),
+                               helper.make_tensor("shape", TensorProto.INT64, [2], [-1, 1])])
+    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)])
+    model.ir_version = 8
+    buf = io.BytesIO(model.SerializeToString())
+    m = Manifest(variant="d", precision="fp32",
+                 inputs=[InputSpec("depth", InputKind.DEPTH, [-1, 320, 240, 1], colour_order="GRAY")],
+                 output=OutputSpec("force", [-1, 1]), name="d_test", provenance=Provenance(note="test graph"))
+    onnx.checker.check_model(model)
+    return write_bundle(dest, buf.getvalue(), m).path
+
+
+def smaller_cases(folder: Path) -> list[tuple[str, Callable[[], Verdict]]]:
+    import cv2
+
+    replay = make_dataset(folder / "small_replay", n=3)
+    scene = folder / "topic.toml"
+    scene.write_text('[runtime]\nbundle = "default"\n[[sensor]]\nname = "digit"\nsource = "virtual"\n'
+                     '[[output]]\nkind = "ros2"\ntopic = "/a//b"\n')
+    vga = folder / "bg_vga.png"
+    cv2.imwrite(str(vga), np.full((480, 640, 3), 90, np.uint8))
+    out_csv = folder / "max0.csv"
+
+    def d_bundle() -> Verdict:
+        try:
+            b = _d_bundle(folder / "d_bundle")
+        except ImportError as exc:
+            return Verdict(Outcome.ACCEPTED, f"not run: {exc}")
+        return guarded(["run", "--source", str(replay), "--bundle", str(b), "--max-frames", "2"], [], True,
+                       ("--depth-mapping",))
+
+    def topic() -> Verdict:
+        v = guarded(["scene", "show", str(scene)], [], True, ("topic",))
+        if v.outcome is Outcome.CLEAR and "--ros2" in v.detail:
+            return Verdict(Outcome.TRACEBACK, f"message names --ros2, not the topic key: {v.detail}")
+        return v
+
+    pngs = folder / "nan_frames"
+    for i in range(2):
+        write_frame_png(pngs / f"{i}.png", i)
+    return [
+        ("run --max-frames 0", lambda: guarded(["run", "--source", str(replay), "--max-frames", "0", "--out",
+                                                str(out_csv)], [replay], True, ("--max-frames",))),
+        ("scene topic = '/a//b' at scene show", topic),
+        ("run --background <640x480 image>", lambda: guarded(
+            ["run", "--source", str(replay), "--background", str(vga), "--max-frames", "2"], [vga], True,
+            (str(vga), "320x240"))),
+        ("D bundle with --source and no depth mapping", d_bundle),
+        ("compress --budget-ms nan", lambda: guarded(
+            ["compress", "teacher.pth", "--frames", str(pngs), "--out", str(folder / "c_nan"), "--budget-ms", "nan"],
+            [pngs], True, ("--budget-ms",))),
+        ("export --tolerance nan", lambda: guarded(
+            ["export", "c.pth", "--out", str(folder / "e_nan"), "--tolerance", "nan"], [], True, ("--tolerance",))),
+        ("quantize --percentile inf", lambda: guarded(
+            ["quantize", str(default_bundle_dir()), "--out", str(folder / "q_inf"), "--percentile", "inf"], [], True,
+            ("--percentile",))),
+        ("calibrate-depth --holdout nan", lambda: guarded(
+            ["calibrate-depth", str(pngs), "--ball-radius-mm", "2", "--px-per-mm", "20", "-o",
+             str(folder / "h.npz"), "--holdout", "nan"], [pngs], True, ("--holdout",))),
+        ("run --fps nan", lambda: guarded(["run", "--source", str(replay), "--fps", "nan"], [replay], True,
+                                          ("--fps",))),
+    ]
+
+
+def run_cases(cases: list[tuple[str, Callable[[], Verdict]]], add: Callable[[Verdict], None]) -> None:
+    """Run each probe; a probe that raises is a traceback naming the case."""
+    for what, probe in cases:
+        try:
+            v = probe()
+        except BaseException as exc:  # noqa: BLE001 - classified, never propagated
+            v = Verdict(Outcome.TRACEBACK, f"{type(exc).__name__}: {exc}"[:300])
+        add(Verdict(v.outcome, f"{what}: {v.detail}"[:400]))
+
+
+def mcap_available() -> bool:
+    try:
+        import cyclonedds  # noqa: F401
+        import mcap  # noqa: F401
+    except ImportError:
+        return False
+    return True
