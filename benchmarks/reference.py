@@ -18,6 +18,16 @@ validation indenters is kept. Split: the paper's S1 protocol (14 / 2 / 2 indente
 Preprocessing is the exported graph's own (tactile_force.export.Preprocess); since it
 has no parameters it is applied once to the whole dataset and cached.
 
+Compact depth configs (D, Dmod, RGBmod+D at input scale 1/k < 1) train at the network
+resolution: every frame is reduced once to 320/k x 240/k (the bundle's recorded reduction)
+and the runtime's own depth stage makes the depth image on that reduced frame with the
+contact gate's mask (``DepthOptions(downscale=k)``, docs/depth.md), so training and runtime
+make the same depth. Their graphs start at the network resolution.
+
+    python -m benchmarks.reference --configs d-w0.125-s4,rgbmod+d-w0.125-s4 --shipped-bundles
+
+installs the shipped compact D and RGBmod+D bundles (edge/models/d, edge/models/rgbmod_d).
+
 Outputs (benchmarks/cache/, not committed): the synthetic dataset, depth images,
 checkpoints, fp32 / int8 bundles and a JSON record per config with the test error.
 """
@@ -48,6 +58,8 @@ DATASET_SEED = 0
 #: not flagged 'saturated'; with them it learns that a saturated gel means "15 N or more".
 ABOVE_RANGE_SHARE = 0.06
 SPLIT = "S1"
+#: torch threads for training (None: all cores; TACTILE_FORCE_TRAIN_THREADS on a shared host)
+THREADS = int(os.environ["TACTILE_FORCE_TRAIN_THREADS"]) if os.environ.get("TACTILE_FORCE_TRAIN_THREADS") else None
 
 
 @dataclass(frozen=True)
@@ -81,9 +93,38 @@ CONFIGS: dict[str, TrainConfig] = {c.name: c for c in [
     TrainConfig("rgbmod", 0.5, 4, epochs=15),
     TrainConfig("rgbmod", 0.125, 8, epochs=15),
     TrainConfig("rgbmod", 0.25, 2, epochs=8),
+    # the shipped compact depth bundles (edge/models/d, edge/models/rgbmod_d): width 1/8 keeps
+    # each int8 graph at a few hundred kB; 60 epochs: about 4 and 9 min on one shared core
+    TrainConfig("d", 0.125, 4, epochs=60),
+    TrainConfig("rgbmod+d", 0.125, 4, epochs=60),
 ]}
 
+#: Shipped bundle folder under edge/models -> the config it is built from.
+SHIPPED_DEPTH_BUNDLES = {"d": "d-w0.125-s4", "rgbmod_d": "rgbmod+d-w0.125-s4"}
+
 DEFAULT_MODEL = "rgbmod-w0.25-s4"
+
+
+def network_resolution(cfg: TrainConfig) -> bool:
+    """True for configs trained (and exported) at the network resolution: compact depth
+    variants, whose depth is made on the reduced frame."""
+    return cfg.variant != "rgbmod" and cfg.k > 1
+
+
+def network_reduction(k: int):
+    """How a frame is reduced to the network input of the network-resolution configs: the
+    package's default for the factor (edge/reduce.py), recorded in the manifest's inputs and
+    depth record."""
+    from tactile_force.edge.reduce import default_reduction
+
+    return default_reduction(k)
+
+
+def reduce_frames(frames: np.ndarray, k: int) -> np.ndarray:
+    """(N, 320, 240, C) uint8 -> (N, 320/k, 240/k, C) uint8 with the network reduction."""
+    from tactile_force.edge.reduce import reduce_frames as _reduce
+
+    return _reduce(frames, network_reduction(k))
 
 
 def log(msg: str) -> None:
@@ -128,12 +169,44 @@ class Arrays:
     meta: list[dict]
     part: np.ndarray
     depth: np.ndarray | None = None
+    #: network-resolution inputs by k: {"rgb": (N,320/k,240/k,3), "depth": (N,320/k,240/k,1)}
+    reduced: dict[int, dict[str, np.ndarray]] | None = None
 
     def select(self, part: str) -> np.ndarray:
         return np.flatnonzero(self.part == part)
 
+    def inputs(self, cfg: TrainConfig, idx: np.ndarray) -> dict[str, np.ndarray]:
+        """The network inputs of config ``cfg`` for samples ``idx`` (raw uint8 frames; at
+        the network resolution for :func:`network_resolution` configs)."""
+        if network_resolution(cfg):
+            assert self.reduced is not None and cfg.k in self.reduced, "load_arrays(depth_downscales=...)"
+            src = self.reduced[cfg.k]
+        else:
+            src = {"rgb": self.rgb, **({"depth": self.depth} if self.depth is not None else {})}
+        return {n: src[n][idx] for n in _input_names(cfg)}
 
-def load_arrays(root: Path, with_depth: bool = False) -> Arrays:
+    def full_inputs(self, cfg: TrainConfig, idx: np.ndarray) -> dict[str, np.ndarray]:
+        """The inputs as export and quantization take them (320 x 240 frames, reduced by the
+        graph's recorded reduction): the full-resolution rgb frames, and for network-resolution
+        configs each grid depth image repeated over its k x k block (any box-average reduction
+        gives it back exactly)."""
+        if not network_resolution(cfg):
+            return self.inputs(cfg, idx)
+        out = {}
+        for n in _input_names(cfg):
+            if n == "rgb":
+                out[n] = self.rgb[idx]
+            else:
+                assert self.reduced is not None
+                out[n] = np.repeat(np.repeat(self.reduced[cfg.k]["depth"][idx], cfg.k, axis=1), cfg.k, axis=2)
+        return out
+
+
+def _input_names(cfg: TrainConfig) -> list[str]:
+    return (["rgb"] if cfg.variant in ("rgbmod", "rgbmod+d") else []) + (["depth"] if cfg.variant != "rgbmod" else [])
+
+
+def load_arrays(root: Path, with_depth: bool = False, depth_downscales: tuple[int, ...] = ()) -> Arrays:
     from tactile_force.edge import AuthorsDataset
     from tactile_force.edge.synthetic import paper_split, split_ids
 
@@ -157,7 +230,11 @@ def load_arrays(root: Path, with_depth: bool = False) -> Arrays:
     arrays = Arrays(rgb=rgb, force=force.astype(np.float32), ids=ids, meta=[ds_meta.get(n, {}) for n in ids],
                     part=part.astype(str))
     if with_depth:
-        arrays.depth = depth_images(root, arrays.rgb)
+        arrays.depth = depth_images(root, arrays.rgb, 1, arrays.meta)
+    arrays.reduced = {}
+    for k in depth_downscales:
+        arrays.reduced[k] = {"rgb": reduce_frames(arrays.rgb, k),
+                             "depth": depth_images(root, arrays.rgb, k, arrays.meta)}
     return arrays
 
 
@@ -168,33 +245,67 @@ VIRTUAL_DEPTH_MAPPING = REPO / "edge" / "assets" / "virtual_digit_depth.npz"
 VIRTUAL_DEPTH_LEVELS_PER_PX = 255.0 / 48.0
 
 
-def virtual_depth_stage():
-    """The runtime's depth stage as the reference depth models were trained with it."""
+def virtual_depth_stage(downscale: int = 1):
+    """The runtime's depth stage as the reference depth models were trained with it
+    (``downscale`` k: at the network resolution 320/k x 240/k)."""
     from tactile_force.edge import DepthOptions, DepthStage
 
-    return DepthStage(DepthOptions(mapping=VIRTUAL_DEPTH_MAPPING, levels_per_px=VIRTUAL_DEPTH_LEVELS_PER_PX))
+    rec = virtual_depth_record(downscale)
+    return DepthStage(DepthOptions(mapping=VIRTUAL_DEPTH_MAPPING, mode=rec.mode,
+                                   levels_per_px=VIRTUAL_DEPTH_LEVELS_PER_PX, downscale=rec.downscale,
+                                   reduction=rec.reduction.method.value))
 
 
-def depth_images(root: Path, rgb: np.ndarray) -> np.ndarray:
-    """Depth images (N,320,240,1) uint8 of every frame, made as the runtime makes them:
-    the contact gate's mask + the depth stage with the virtual DIGIT's calibration
-    (benchmarks/virtual_depth_calibration.py). Cached next to the dataset."""
-    from tactile_force.edge import ContactGate
+def virtual_depth_record(downscale: int = 1):
+    """The manifest's depth record of the reference depth models (what the runtime rebuilds)."""
+    from tactile_force.edge.bundle import sha256_file
+    from tactile_force.edge.manifest import DepthRecord
+
+    return DepthRecord(mapping=f"package:{VIRTUAL_DEPTH_MAPPING.name}", mode="exact",
+                       levels_per_px=VIRTUAL_DEPTH_LEVELS_PER_PX, mapping_sha256=sha256_file(VIRTUAL_DEPTH_MAPPING),
+                       mask="contact gate (GateOptions defaults)", reduction=network_reduction(downscale))
+
+
+def depth_images(root: Path, rgb: np.ndarray, downscale: int = 1, meta: list[dict] | None = None) -> np.ndarray:
+    """Depth images of every frame, made as the runtime makes them: the contact gate's
+    mask + the depth stage with the virtual DIGIT's calibration
+    (benchmarks/virtual_depth_calibration.py); (N,320,240,1) uint8, or at ``downscale`` k
+    (N,320/k,240/k,1) made on the reduced frame. Cached next to the dataset."""
+    from tactile_force.edge import ContactGate, GateOptions
     from tactile_force.edge.synthetic import VirtualDigit, VirtualDigitOptions
 
-    cache = root / "depth.npy"
+    cache = root / f"depth-s{downscale}.npy"  # v2: gate background rendered with each frame's LED gains
+    skipped = 0
     if cache.is_file():
         return np.load(cache)
-    log(f"computing depth images with the runtime's gate + depth stage ({VIRTUAL_DEPTH_MAPPING.name})")
-    background = VirtualDigit(VirtualDigitOptions()).render(None, 0.0, led_gain=(1.0, 1.0, 1.0)).frame
-    stage = virtual_depth_stage()
-    out = np.zeros(rgb.shape[:3] + (1,), np.uint8)
+    log(f"computing depth images (downscale {downscale}) with the runtime's gate + depth stage "
+        f"({VIRTUAL_DEPTH_MAPPING.name})")
+    digit = VirtualDigit(VirtualDigitOptions())
+    backgrounds: dict[tuple[float, ...], np.ndarray] = {}
+    stage = virtual_depth_stage(downscale)
+    out = np.zeros((rgb.shape[0], *stage.output_shape), np.uint8)
     for i, frame in enumerate(rgb):
+        # the gate's background is the sensor's own no-contact frame, as a runtime learns it:
+        # the virtual DIGIT rendered with this frame's LED gains (its grasp's)
+        gain = tuple(float(v) for v in (meta[i].get("led_gain") if meta else None) or (1.0, 1.0, 1.0))
+        if gain not in backgrounds:
+            backgrounds[gain] = digit.render(None, 0.0, led_gain=gain, rng=np.random.default_rng(0)).frame
         gate = ContactGate()
-        gate.capture_background([background])
+        gate.capture_background([backgrounds[gain]])
         g = gate.update(frame)
+        if g.mismatch or g.invalid:
+            # judged from one frame the gate calls a very large press a mismatch; in a stream it
+            # tracks a press that grew while it watched: take its mask with the judging off
+            skipped += 1
+            gate = ContactGate(GateOptions(trust=False))
+            gate.capture_background([backgrounds[gain]])
+            g = gate.update(frame)
         out[i] = stage.process(frame, g.mask).depth
-    np.save(cache, out)
+    log(f"depth images: {skipped} of {len(out)} frames the gate judged a mismatch from one frame "
+        "(mask taken with its judging off)")
+    tmp = cache.with_name(cache.name + ".partial.npy")
+    np.save(tmp, out)
+    os.replace(tmp, cache)
     return out
 
 
@@ -208,25 +319,27 @@ def train(cfg: TrainConfig, data: Arrays, out_dir: Path) -> dict:
     from tactile_force.export.training import Frames, TrainOptions, predict, preprocess, train_network
 
     spec = ModelSpec(cfg.variant, cfg.width, cfg.input_scale)
+    # network-resolution configs get frames already reduced to the network input: the
+    # network trains without an in-graph pool (input scale 1 on the reduced frames)
+    train_spec = ModelSpec(cfg.variant, cfg.width, 1.0) if network_resolution(cfg) else spec
     tr, va, te = data.select("train"), data.select("val"), data.select("test")
 
     def frames(idx: np.ndarray) -> Frames:
-        inputs = {"rgb": data.rgb[idx]} if cfg.variant in ("rgbmod", "rgbmod+d") else {}
-        if cfg.variant != "rgbmod":
-            inputs["depth"] = data.depth[idx]  # type: ignore[index]
-        return Frames(inputs, data.force[idx])
+        return Frames(data.inputs(cfg, idx), data.force[idx])
 
     def epoch_log(e) -> None:
         log(f"{cfg.name} epoch {e.epoch}/{cfg.epochs}: train L1 {e.train_l1:.3f} N, "
             f"val RE {e.val_re:.3f} MAE {e.val_mae:.3f} N ({e.seconds:.0f} s)")
 
-    result = train_network(spec, frames(tr), frames(va),
-                           TrainOptions(epochs=cfg.epochs, lr=cfg.lr, batch=cfg.batch, seed=cfg.seed), log=epoch_log)
+    result = train_network(train_spec, frames(tr), frames(va),
+                           TrainOptions(epochs=cfg.epochs, lr=cfg.lr, batch=cfg.batch, seed=cfg.seed,
+                                        threads=THREADS), log=epoch_log)
     model = result.model
     history = [{"epoch": e.epoch, "train_l1": e.train_l1, "val_re": e.val_re, "val_mae": e.val_mae}
                for e in result.history]
     p_te = predict(model, preprocess(result.net, frames(te).inputs))
-    groups = {g: [str(m.get(g, "?")) for m in (data.meta[i] for i in te)] for g in ("indenter", "stiffness", "location")}
+    groups = {g: [str(m.get(g, "?")) for m in (data.meta[i] for i in te)]
+              for g in ("indenter", "stiffness", "location")}
     report = error_report(p_te, data.force[te], groups=groups)
     out_dir.mkdir(parents=True, exist_ok=True)
     record = {
@@ -235,8 +348,10 @@ def train(cfg: TrainConfig, data: Arrays, out_dir: Path) -> dict:
         "dataset": f"synthetic n={DATASET_N} seed={DATASET_SEED} ({ABOVE_RANGE_SHARE:.0%} at 15-20 N)",
         "test": report.as_dict(), "history": history,
     }
-    save_checkpoint(out_dir / "model.pth", model, spec, extra={"trained_on": record["dataset"], "split": SPLIT,
-                                                               "best_epoch": result.best_epoch})
+    extra = {"trained_on": record["dataset"], "split": SPLIT, "best_epoch": result.best_epoch}
+    if network_resolution(cfg):
+        extra["network_input"] = f"reduced {network_reduction(cfg.k).method.value} x{cfg.k}"
+    save_checkpoint(out_dir / "model.pth", model, spec, extra=extra)
     (out_dir / "record.json").write_text(json.dumps(record, indent=2))
     log(f"{cfg.name}: test {report.overall}")
     return record
@@ -251,11 +366,7 @@ def calibration_data(cfg: TrainConfig, data: Arrays, part: str, n: int | None = 
     if n is not None:
         idx = np.random.default_rng(0).choice(idx, size=min(n, len(idx)), replace=False)
         idx.sort()
-    inputs = {}
-    if cfg.variant in ("rgbmod", "rgbmod+d"):
-        inputs["rgb"] = data.rgb[idx]
-    if cfg.variant != "rgbmod":
-        inputs["depth"] = data.depth[idx]
+    inputs = data.full_inputs(cfg, idx)
     return CalibrationData(inputs=inputs, forces=data.force[idx], source=f"synthetic {part} split ({SPLIT})",
                            ids=[str(data.ids[i]) for i in idx])
 
@@ -276,20 +387,18 @@ def make_bundles(cfg: TrainConfig, data: Arrays, out_dir: Path, force: bool = Fa
                         eval_data=calibration_data(cfg, data, "test"))
     if cfg.variant != "rgbmod":
         for path in paths.values():
-            record_depth_mapping(path)
+            record_depth_mapping(path, cfg.k if network_resolution(cfg) else 1)
     return paths
 
 
-def record_depth_mapping(bundle_dir: Path) -> None:
-    """Write into a depth bundle's manifest which depth mapping made its training images,
-    so a scene without a [depth] table builds the same depth stage (idempotent)."""
-    from tactile_force.edge.bundle import load_bundle, sha256_file, write_bundle
-    from tactile_force.edge.manifest import DepthRecord
+def record_depth_mapping(bundle_dir: Path, downscale: int = 1) -> None:
+    """Write into a depth bundle's manifest which depth mapping made its training images and
+    on which grid (``downscale``), so a scene without a [depth] table builds the same depth
+    stage (idempotent)."""
+    from tactile_force.edge.bundle import load_bundle, write_bundle
 
     b = load_bundle(bundle_dir)
-    want = DepthRecord(mapping=f"package:{VIRTUAL_DEPTH_MAPPING.name}", mode="exact",
-                       levels_per_px=VIRTUAL_DEPTH_LEVELS_PER_PX,
-                       mapping_sha256=sha256_file(VIRTUAL_DEPTH_MAPPING), mask="contact gate (GateOptions defaults)")
+    want = virtual_depth_record(downscale)
     if b.manifest.depth != want:
         b.manifest.depth = want
         write_bundle(bundle_dir, b.onnx_path.read_bytes(), b.manifest, overwrite=True)
@@ -312,6 +421,32 @@ def install_default_bundle(int8_bundle: Path) -> Path:
     return write_bundle(DEFAULT_BUNDLE_DIR, src.onnx_path.read_bytes(), manifest, overwrite=True).path
 
 
+DEPTH_NOTE = ("Trained on SYNTHETIC frames from the package's virtual DIGIT only, with depth images made at the "
+              "network resolution (80 x 60) by the runtime's depth stage from the virtual DIGIT's shipped "
+              "calibration (package:virtual_digit_depth.npz). It lets the robot side compare D / RGBmod+D with "
+              "RGBmod (tactile-force bench); it does not know your sensor. On a real DIGIT, calibrate the depth "
+              "stage (calibrate-depth) and train on your own labelled frames before trusting its newtons.")
+
+
+def install_shipped_bundle(folder: str, bundle: Path) -> Path:
+    """Copy a trained depth bundle into edge/models/<folder> with the synthetic-data note and
+    the default bundle's data statistics (the same training distribution, seen by the gate)."""
+    from tactile_force.edge.bundle import load_bundle, write_bundle
+
+    from .trust import default_data_stats
+
+    src = load_bundle(bundle)
+    m = src.manifest
+    precision = "int8" if m.precision.value == "int8-static" else m.precision.value
+    m.name = f"{folder.replace('_', '+')}-compact-{precision}"
+    m.provenance.note = DEPTH_NOTE
+    m.provenance.trained_on = "synthetic"
+    m.data_stats = default_data_stats()
+    if hasattr(m, "data_stats_missing"):
+        m.data_stats_missing = ""
+    return write_bundle(REPO / "edge" / "models" / folder, src.onnx_path.read_bytes(), m, overwrite=True).path
+
+
 # ----------------------------------------------------------------------------- CLI
 
 def main(argv: list[str] | None = None) -> int:
@@ -321,14 +456,18 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--retrain", action="store_true", help="ignore cached checkpoints")
     ap.add_argument("--default-bundle", action="store_true",
                     help=f"install {DEFAULT_MODEL}'s int8 bundle as edge/models/default")
+    ap.add_argument("--shipped-bundles", action="store_true",
+                    help="install the int8 bundles of " + ", ".join(SHIPPED_DEPTH_BUNDLES.values())
+                    + " as edge/models/" + ", edge/models/".join(SHIPPED_DEPTH_BUNDLES))
     args = ap.parse_args(argv)
     names = [c for c in args.configs.split(",") if c]
     unknown = [c for c in names if c not in CONFIGS]
     if unknown:
         ap.error(f"unknown configs {unknown}; choose from {list(CONFIGS)}")
     root = ensure_dataset()
-    need_depth = any(CONFIGS[c].variant != "rgbmod" for c in names)
-    data = load_arrays(root, with_depth=need_depth)
+    need_depth = any(CONFIGS[c].variant != "rgbmod" and not network_resolution(CONFIGS[c]) for c in names)
+    downscales = tuple(sorted({CONFIGS[c].k for c in names if network_resolution(CONFIGS[c])}))
+    data = load_arrays(root, with_depth=need_depth, depth_downscales=downscales)
     log(f"dataset: {len(data.ids)} frames, train {len(data.select('train'))}, val {len(data.select('val'))}, "
         f"test {len(data.select('test'))}")
     for name in names:
@@ -342,6 +481,10 @@ def main(argv: list[str] | None = None) -> int:
     if args.default_bundle:
         path = install_default_bundle(CACHE / "models" / DEFAULT_MODEL / "int8")
         log(f"installed default bundle at {path}")
+    if args.shipped_bundles:
+        for folder, name in SHIPPED_DEPTH_BUNDLES.items():
+            path = install_shipped_bundle(folder, CACHE / "models" / name / "int8")
+            log(f"installed {name} at {path}")
     return 0
 
 
