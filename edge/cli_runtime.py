@@ -101,7 +101,7 @@ def configure_run(p: argparse.ArgumentParser) -> None:
     p.add_argument("--max-frames", type=positive_int, default=None,
                    help="stop after this many readings (>= 1; default: scene / until sources end)")
     p.add_argument("--force", action="store_true",
-                   help="with --out: replace output files that exist (never an input)")
+                   help="replace --out / --save-scene files that exist (never an input)")
     p.add_argument("--depth-mapping", metavar="FILE",
                    help="with --source and a depth bundle (d, dmod, rgbmod+d) whose manifest records no mapping: "
                         "the colour->normal .npz (the paper MLP or a 'tactile-force calibrate-depth' result)")
@@ -227,8 +227,7 @@ def _run_scene(args: argparse.Namespace):
 
     given = [f"--{k.replace('_', '-')}" for k in ("bundle", "background", "fps", "ros2", "depth_mapping")
              if getattr(args, k, None) is not None] + (["--out"] if args.out else []) \
-        + (["--mcap-frames"] if getattr(args, "mcap_frames", False) else []) \
-        + (["--force"] if getattr(args, "force", False) else [])
+        + (["--mcap-frames"] if getattr(args, "mcap_frames", False) else [])
     if args.scene and args.source:
         raise SceneError("give --scene FILE or --source SRC, not both")
     if args.scene:
@@ -284,6 +283,10 @@ def main_run(args: argparse.Namespace) -> int:
 
     scene = _run_scene(args)
     if args.save_scene:
+        from .output_guard import OutputKind, check_output
+
+        check_output(args.save_scene, [("--scene", args.scene), ("--source", args.source)],
+                     force=getattr(args, "force", False), kind=OutputKind.FILE, flag="--save-scene")
         print(f"wrote scene {save_scene(scene, args.save_scene)}", file=sys.stderr)
     built = build_scene(scene, warn=lambda m: print(f"\nwarning: {m}", file=sys.stderr))
     for n in built.notes:

@@ -47,6 +47,13 @@ def _problems(args: argparse.Namespace) -> list[str]:
     if args.below_fraction + args.above_fraction > 1.0:
         out.append("--below-fraction + --above-fraction add up to more than 1")
     dest = Path(args.out)
+    from ..output_guard import OutputKind, OutputRefused, check_output
+
+    try:  # synth adds to a new or empty folder; it must not be, hold or lie inside an input file
+        check_output(dest, [("--background", args.background), ("--normal-to-rgb-mlp", args.normal_to_rgb_mlp)],
+                     kind=OutputKind.FOLDER, allow_existing=True)
+    except OutputRefused as exc:
+        out.append(str(exc))
     if dest.exists() and not dest.is_dir():
         out.append(f"--out {dest}: is a file; expected a folder to create (or an empty one)")
     else:

@@ -194,3 +194,13 @@ def test_export_parity_data_holding_the_output_is_refused(tiny_checkpoint, tmp_p
     rc = cli_main(["export", str(tiny_checkpoint), "--out", str(data / "bundle"), "--parity-data", str(data)])
     assert rc == 2 and "inside the input --parity-data" in capsys.readouterr().err
     assert not (data / "bundle").exists()
+
+
+def test_save_scene_refuses_an_existing_file_without_force(replay, tmp_path, capsys):
+    scene = tmp_path / "mine.toml"
+    scene.write_text("# my scene\n")
+    rc = cli_main(["run", "--source", str(replay), "--save-scene", str(scene), "--max-frames", "1"])
+    assert rc == 2 and "--save-scene" in capsys.readouterr().err
+    assert scene.read_text() == "# my scene\n"
+    assert cli_main(["run", "--source", str(replay), "--save-scene", str(scene), "--max-frames", "1", "--force"]) == 0
+    assert "[[sensor]]" in scene.read_text()
