@@ -278,7 +278,8 @@ def export_bundle(source: str | os.PathLike | nn.Module, dest: str | os.PathLike
 
     inputs = [("checkpoint", source if isinstance(source, (str, os.PathLike)) else None),
               ("--parity-data", options.parity_data if isinstance(options.parity_data, (str, os.PathLike)) else None)]
-    dest = check_output(dest, inputs, force=options.overwrite, kind=OutputKind.BUNDLE)
+    check_output(dest, inputs, force=options.overwrite, kind=OutputKind.BUNDLE)
+    dest = Path(dest)
     model, spec, prov = _resolve(source, options)
     scale_factor(spec.input_scale)
     model.eval()

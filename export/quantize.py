@@ -259,7 +259,8 @@ def quantize_bundle(src: Bundle | str | os.PathLike, dest: str | os.PathLike, op
     inputs = [(flag, p if isinstance(p, (str, os.PathLike)) else None)
               for flag, p in (("bundle", src_path), ("--calib", calibration), ("--eval", eval_data),
                               ("--background", o.background))]
-    dest = check_output(dest, inputs, force=o.overwrite, kind=OutputKind.BUNDLE)
+    check_output(dest, inputs, force=o.overwrite, kind=OutputKind.BUNDLE)
+    dest = Path(dest)
     bundle = src if isinstance(src, Bundle) else load_bundle(src)
     m = bundle.manifest
     if m.precision != "fp32":
