@@ -373,6 +373,11 @@ class ReplayFolderSource(_FileSequenceSource):
         else:
             self._files = sorted((p for p in self.path.iterdir() if p.suffix.lower() in (".png", ".jpg", ".jpeg")),
                                  key=_natural_key)
+            from .output_guard import special_file_kind
+
+            for p in self._files:  # reading a FIFO would block
+                if (kind := special_file_kind(p)) is not None:
+                    raise SourceError(f"replay folder {self.path}: {p.name} is a {kind}; expected image files")
         if not self._files:
             raise SourceError(f"replay folder {self.path}: no .png/.jpg frames")
         self.layout = "authors" if self._dataset is not None else "plain"
