@@ -394,9 +394,10 @@ def latency_page(args, argv: list[str], measure_fn: Callable[[LatencyCase], Late
         "onnxruntime's profiler (`SessionOptions.enable_profiling`), default bundle, one thread, node by node "
         f"(median per run; `model_run` median {run_us:.0f} us, the node times sum to less):\n\n"
         + markdown_table(["op (as onnxruntime runs it)", "us per run", "share of node time", "nodes"], prof, 1)
-        + "\n\nThe int8 convolutions take about half of the node time; the input head (uint8 NHWC -> NCHW "
-        "Transpose, Cast to float, 4x4 AveragePool, QuantizeLinear) about a third. Tried and kept out (measured not "
-        "faster on this "
+        + "\n\nThe default graph starts at the network resolution (issue 18): the frame is reduced to 80 x 60 "
+        "once, outside the graph, and the int8 convolutions take about three quarters of the node time (before, "
+        "the in-graph input head - Transpose, Cast, 4x4 AveragePool, QuantizeLinear on the full frame - took about "
+        "a third; docs/benchmarks/one_downscale.md). Tried and kept out (measured not faster on this "
         "machine, same outputs): the head as one QLinearConv (4x4 stride 4, per channel; dense and depthwise), "
         "a Reshape + ReduceMean head, session options (graph optimisation level extended vs all, memory arena and "
         "pattern off, QDQ int8 allowance). IO binding is kept (the runtime's predict runs the bound buffers).\n\n"

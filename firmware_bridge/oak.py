@@ -24,6 +24,7 @@ import numpy as np
 from ..edge.bundle import Bundle, load_bundle
 from ..edge.errors import AcceleratorUnavailableError, FrameError, MissingExtraError, ModelClosedError, require
 from ..edge.frames import FRAME_SHAPE, check_batch
+from ..edge.reduce import FrameReducer
 
 
 @dataclass
@@ -67,6 +68,10 @@ class OakForceModel:
                 f"bundle {self.bundle.name}: variant {m.variant!r} has {len(m.inputs)} inputs; the OAK backend "
                 "runs single-input graphs (rgbmod, d, dmod): use the CPU backend")
         self._spec = m.inputs[0]
+        # A graph at the network resolution (manifest inputs[].reduction): frames are reduced
+        # here, once, as OnnxForceModel.predict reduces them (edge/reduce.py).
+        self._reducer = (FrameReducer(self._spec.reduction, (*FRAME_SHAPE[:2], self._spec.channels))
+                         if self._spec.reduction.factor > 1 else None)
         archive = Path(options.archive)
         if not archive.is_file():
             raise AcceleratorUnavailableError(f"{archive}: NN Archive not found (build it with "
@@ -132,6 +137,8 @@ class OakForceModel:
         timeout = timedelta(seconds=self.options.timeout_s)
         start = time.perf_counter()
         for i, img in enumerate(batch):
+            if self._reducer is not None:
+                img = self._reducer(img)
             self._frame.setCvFrame(img[..., 0] if img.shape[-1] == 1 else img, self._type)
             self._frame.setSequenceNum(i)
             self._in.send(self._frame)
