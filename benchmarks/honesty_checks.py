@@ -29,6 +29,7 @@ import threading
 import time
 from collections import Counter
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -103,9 +104,9 @@ def shared_model(reps: int) -> tuple[list[str], dict]:
     solo = [_forces(_runtime(OnnxForceModel(default_bundle_path()), s, "solo", bg)) for s in seqs]
     res = {}
     for label, bypass in (("with the lock (this package)", False), ("lock bypassed (as in c1733e6)", True)):
-        shared = OnnxForceModel(default_bundle_path())
+        shared: Any = OnnxForceModel(default_bundle_path())
         if bypass:
-            shared._lock = contextlib.nullcontext()  # type: ignore[assignment]
+            shared._lock = contextlib.nullcontext()
         rts = [_runtime(shared, s, f"r{k}", bg) for k, s in enumerate(seqs)]
         got: list[list[float]] = [[], []]
         barrier = threading.Barrier(2)
@@ -129,21 +130,24 @@ def shared_model(reps: int) -> tuple[list[str], dict]:
                     if not (math.isnan(a) and math.isnan(b)) and abs(a - b) > 0.01)
         res[label] = (wrong, n)
     # The lock's cost: predict (lock) vs _predict (no lock), interleaved blocks, one thread.
-    m = OnnxForceModel(default_bundle_path())
+    m: Any = OnnxForceModel(default_bundle_path())
     x = frames[-1][None]
-    lock, none = m._lock, contextlib.nullcontext()
-    a_ns, b_ns = [], []
+    lock: Any = m._lock
+    none: Any = contextlib.nullcontext()
+    a_ns: list[float] = []
+    b_ns: list[float] = []
     blocks = 20 if reps > 5 else 6
     for _ in range(blocks):
         for guard, acc in ((lock, a_ns), (none, b_ns)):
-            m._lock = guard  # type: ignore[assignment]
+            m._lock = guard
             t0 = time.perf_counter_ns()
             for _ in range(200):
                 m.predict(x, None)
             acc.append((time.perf_counter_ns() - t0) / 200)
     m._lock = lock
     lock_us = (float(np.median(a_ns)) - float(np.median(b_ns))) / 1e3
-    bare_a, bare_b = [], []  # the lock alone: acquire + release vs an empty context, interleaved
+    bare_a: list[float] = []
+    bare_b: list[float] = []  # the lock alone: acquire + release vs an empty context, interleaved
     for _ in range(20):
         for guard, acc in ((lock, bare_a), (none, bare_b)):
             t0 = time.perf_counter_ns()
@@ -185,13 +189,13 @@ def compressed_on_wedge(tmp: Path) -> tuple[list[str], dict]:
                                          calibration_frames=20, max_vs_teacher_re=math.inf))
     assert res.bundle is not None
     model = OnnxForceModel(res.bundle.path)
-    readings = []
+    readings: list = []
     for _, frames, forces in wedge_grasps():
         sel = [k for k, x in enumerate(forces) if 11.0 <= x <= 14.0]
         if sel:
             rt = _runtime(model, [frames[k] for k in sel], "wedge", frames[0], [forces[k] for k in sel])
             rt.run(on_reading=readings.append)
-    ood = sum(1 for r in readings if Flags.OUT_OF_DISTRIBUTION in r.flags)
+    ood = sum(1 for r in readings if r.flags & Flags.OUT_OF_DISTRIBUTION)
     finite = [r.force_n for r in readings if math.isfinite(r.force_n)]
     ds_ = res.bundle.manifest.data_stats
     lines = ["## 2. A compressed student on GelSight Wedge frames", "",
@@ -219,7 +223,7 @@ def calibrated_on_virtual(cal: Path, n: int) -> tuple[list[str], dict]:
     from tactile_force.edge.synthetic import VirtualDigitSource
 
     src = VirtualDigitSource(seed=3, n_grasps=6, peak_n=(2.0, 14.0))
-    frames = []
+    frames: list = []
     while len(frames) < n and (tf := src.read()) is not None:
         frames.append(tf)
     readings: list = []

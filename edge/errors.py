@@ -32,10 +32,6 @@ class OptionsError(TactileForceError, ValueError):
     """An options object (RuntimeOptions, ...) holds a value outside its range; the message names the field."""
 
 
-class SensorMismatchError(TactileForceError):
-    """Frames come from another sensor than the one a calibration or background belongs to."""
-
-
 class DatasetError(TactileForceError):
     """A labelled dataset on disk is missing files or holds unparsable ones."""
 
