@@ -13,9 +13,9 @@ PAGES = (
                    "thread count; PyTorch eager, onnxruntime and OpenVINO side by side; two sensors; the demo's "
                    "late readings; masked depth evaluation; the gate's cost"),
     ("one_downscale.md", "Issue 18's goals (one downscale per frame): runtime total and gate against a bare "
-                         "onnxruntime session on the previous default graph (c1733e6), interleaved in one run; how the frame is "
-                         "reduced; the graph node by node and its variants; the under-1 ms check 10 times back to "
-                         "back (`python -m benchmarks one-downscale --out docs/benchmarks`)"),
+                         "onnxruntime session on the previous default graph (c1733e6), interleaved in one run; "
+                         "how the frame is reduced; the graph node by node and its variants; the under-1 ms check "
+                         "10 times back to back (`python -m benchmarks one-downscale --out docs/benchmarks`)"),
     ("error_vs_runtime.md", "Error (RE / MAE, per 1 N bin; synthetic held-out indenters and real AUROVA frames) "
                             "against p50 / p99 of every trained bundle"),
     ("error_vs_runtime.png", "Pareto plot: RE against p99 latency"),
