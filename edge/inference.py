@@ -148,6 +148,9 @@ class OnnxForceModel:
         depth variants, depth (N,320,240,1) uint8, or depth images already at the network
         resolution (N, rows, cols, 1) (what a depth stage on the network grid makes, e.g.
         80 x 60). N is 1 or 2. D / Dmod bundles read only the depth images (rgb may then be None).
+        A bundle whose graph starts at the network resolution reduces the frames here, once,
+        by its recorded :attr:`reduction` (edge/reduce.py) straight into the bound input buffer:
+        ``predict(frames)`` equals ``predict_reduced(reduce_frames(frames, model.reduction))``.
 
         Thread-safe: one model may serve several threads or runtimes (two grippers); calls
         are serialised by a lock around fill + run + copy of the shared bound buffers (each
