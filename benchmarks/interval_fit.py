@@ -74,12 +74,12 @@ class GraspReadings:
 def grasp_readings(bundle, seed: int, n_grasps: int, split: str = SPLIT, peak_n: tuple[float, float] = PEAK_N,
                    progress: bool = True) -> GraspReadings:
     """Run ``bundle`` (path or Bundle) through ForceRuntime on ``n_grasps`` virtual DIGIT grasps
-    of ``seed`` with the indenters of ``split``'s test part."""
+    of ``seed`` with the indenters of ``split``'s test part (``"all"``: the 18 paper indenters)."""
     from tactile_force.edge import ContactGate, ForceRuntime, OnnxForceModel, RuntimeOptions, Sensor
     from tactile_force.edge.reading import Flags
-    from tactile_force.edge.synthetic import VirtualDigitSource, paper_split
+    from tactile_force.edge.synthetic import VirtualDigitSource, paper_indenter_names, paper_split
 
-    indenters = list(paper_split(split).test)
+    indenters = list(paper_indenter_names()) if split == "all" else list(paper_split(split).test)
     src = VirtualDigitSource(seed=seed, n_grasps=n_grasps, indenters=indenters, peak_n=peak_n, name="virtual")
     model = OnnxForceModel(bundle, threads=1)
     rt = ForceRuntime([Sensor("virtual", src, ContactGate())], model, RuntimeOptions(deadline_ms=1e9))
@@ -97,7 +97,9 @@ def grasp_readings(bundle, seed: int, n_grasps: int, split: str = SPLIT, peak_n:
         rt.close()
     a = np.array([r[:5] for r in rows], np.float64).reshape(-1, 5)
     desc = (f"{n_grasps} virtual DIGIT grasps through ForceRuntime (VirtualDigitSource seed {seed}, peaks "
-            f"{peak_n[0]:g}-{peak_n[1]:g} N, {split} test indenters {', '.join(indenters)}; {len(rows)} readings)")
+            f"{peak_n[0]:g}-{peak_n[1]:g} N, " + ("all 18 paper indenters" if split == "all" else
+                                                 f"{split} test indenters {', '.join(indenters)}")
+            + f"; {len(rows)} readings)")
     return GraspReadings(a[:, 0], a[:, 1], a[:, 2].astype(np.int64), a[:, 3], a[:, 4], [r[5] for r in rows], desc)
 
 

@@ -33,6 +33,10 @@ GOALS = ("Goals (issue 21): synthetic coverage within 0.85-0.97 for a stated 0.9
          "force; the interval step under 2 us per reading.")
 
 
+def _n2(v: float | None) -> str:
+    return "unknown" if v is None else f"{v:.2f}"
+
+
 def _inside(low: np.ndarray, high: np.ndarray, truth: np.ndarray) -> np.ndarray:
     return (low <= truth) & (truth <= high)
 
@@ -73,14 +77,38 @@ def table_rows(truth: np.ndarray, low: np.ndarray, high: np.ndarray, known: np.n
     return rows
 
 
-def synthetic_section(n_grasps: int, bundle_path: Path = MODELS / "default") -> tuple[str, dict]:
+def cached_grasp_readings(bundle, seed: int, n_grasps: int, split: str) -> GraspReadings:
+    """:func:`grasp_readings`, kept in benchmarks/cache/ under the bundle's exact model.json
+    (model sha256 and interval record) and the run's parameters, so a rerun of the page
+    after an unrelated failure does not re-render the grasps."""
+    import hashlib
+    import json
+
+    from .reference import CACHE
+
+    key = hashlib.sha256((bundle.manifest.to_json() + json.dumps([seed, n_grasps, split])).encode()).hexdigest()[:16]
+    path = CACHE / f"interval_readings-{key}.npz"
+    if path.is_file():
+        z = np.load(path)
+        return GraspReadings(z["force"], z["truth"], z["flags"], z["low"], z["high"], [str(x) for x in z["state"]],
+                             str(z["source"]))
+    g = grasp_readings(bundle, seed, n_grasps, split=split, progress=False)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.stem + ".tmp.npz")
+    np.savez(tmp, force=g.force, truth=g.truth, flags=g.flags, low=g.low, high=g.high, state=np.array(g.state),
+             source=np.array(g.source))
+    tmp.replace(path)
+    return g
+
+
+def synthetic_section(n_grasps: int, bundle_path: Path = MODELS / "default", split: str = "S1") -> tuple[str, dict]:
     from tactile_force.edge.bundle import load_bundle
 
     b = load_bundle(bundle_path)
     iv = b.manifest.interval
     if iv is None:
         return ("The default bundle has no interval: run `python -m benchmarks.interval_fit` first.\n", {})
-    g: GraspReadings = grasp_readings(b, REPORT_SEED, n_grasps, progress=False)
+    g = cached_grasp_readings(b, REPORT_SEED, n_grasps, split)
     c = g.contact()
     known = np.array([s != "unknown" for s in g.state])
     truth, low, high = g.truth[c], g.low[c], g.high[c]
@@ -94,11 +122,13 @@ def synthetic_section(n_grasps: int, bundle_path: Path = MODELS / "default") -> 
     nc_in = _inside(g.low[nc & known], g.high[nc & known], g.truth[nc & known])
     bins = ", ".join(f"[{x.lo_n:g}, {'inf' if x.hi_n is None else f'{x.hi_n:g}'}) n={x.n} q="
                      f"{'unknown' if x.q is None else f'{x.q:.3f}'}" for x in iv.bins)
+    title = ("## Synthetic: the default bundle on grasps it never saw" if split != "all" else
+             "## Synthetic, all 18 paper indenters: shapes the model trained on, grasps it never saw")
     text = [
-        "## Synthetic: the default bundle on grasps it never saw",
+        title,
         "",
         f"Bundle `{b.manifest.name}` (model sha256 {b.manifest.sha256[:12]}...), its shipped interval: stated coverage "
-        f"{iv.coverage:g}, fitted on {iv.data}. Table: {bins}; no_contact bound {iv.no_contact_high_n} N "
+        f"{iv.coverage:g}, fitted on {iv.data}. Table: {bins}; no_contact bound {_n2(iv.no_contact_high_n)} N "
         f"({iv.no_contact_n} gate-closed frames).",
         "",
         f"Reported on {g.source}. Readings in contact (the model's estimate) by TRUE force; width = "
@@ -109,7 +139,7 @@ def synthetic_section(n_grasps: int, bundle_path: Path = MODELS / "default") -> 
         "",
         f"Coverage over all contact readings: **{cov:.3f}** (stated {iv.coverage:g}; goal 0.85-0.97); median width "
         f"**{med:.3f} x the true force** (goal <= 0.45). no_contact readings (gate closed): "
-        f"{int(nc_in.sum())} / {int((nc & known).sum())} inside [0, {iv.no_contact_high_n} N].",
+        f"{int(nc_in.sum())} / {int((nc & known).sum())} inside [0, {_n2(iv.no_contact_high_n)} N].",
         "",
     ]
     return "\n".join(text), {"coverage": cov, "median_width": med}
@@ -229,11 +259,18 @@ def intervals_page(args, argv) -> str:
     n = 8 if args.quick else REPORT_GRASPS
     m = describe_machine()
     syn, _ = synthetic_section(n)
+    syn_all, _ = synthetic_section(n, split="all")
+    syn_all += ("\nThe interval was fitted on the S1 test indenters (two small shapes); on all 18 shapes the "
+                "calibration and report grasps are no longer exchangeable, so the stated coverage is not "
+                "guaranteed there: this table shows how far it carries over.\n")
     real, _ = real_section()
     cost, _ = cost_section(repeats=3 if args.quick else 7, calls=20_000 if args.quick else 200_000)
     notes = (f"Every reading carries `force_low_n` / `force_high_n` / `interval` (docs/runtime.md). {GOALS} The "
              f"shipped interval is fitted on {CAL_GRASPS} grasps of a calibration seed "
              "(`python -m benchmarks.interval_fit`); the report seed is used for nothing else. Method: split "
-             "conformal prediction, Mondrian by estimate bin (edge/interval.py, `ForceInterval` Notes).")
+             "conformal prediction, Mondrian by estimate bin (edge/interval.py, `ForceInterval` Notes). Design "
+             "choice made while looking at data: the score's 5 N floor (absolute half-width below 5 N, relative "
+             "above) was picked from the AUROVA fit set's leave-one-out residuals, and the held-out frames' "
+             "residuals had been printed during development too: the real-frame table is not a blind test.")
     return header("Error bars: coverage and width of every reading's interval", command_line(argv), m, notes) + \
-        "\n".join([syn, real, cost])
+        "\n".join([syn, syn_all, real, cost])
