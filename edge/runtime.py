@@ -674,9 +674,9 @@ class ForceRuntime:
             self._pressed[s.name] = ""
             if not getattr(self, "_unchecked_said", False):
                 self._unchecked_said = True
-                _log.warning("%s cannot be checked for a press: the bundle carries no no-contact image of the sensor "
-                             "(calibrate-force --background, or export/quantize/compress --background, record one)",
-                             origin)
+                _log.info("%s cannot be checked for a press: the bundle carries no no-contact image of the sensor "
+                          "(calibrate-force --background, or export/quantize/compress --background, record one)",
+                          origin)
             return
         why = pressed_background(img, self._ref_thumb, self._ref_what, origin, min_cells=self._ref_min)
         self._pressed[s.name] = why
