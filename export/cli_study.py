@@ -61,7 +61,7 @@ def main(args: argparse.Namespace) -> int:
     if args.out.exists() and not args.out.is_dir():
         raise StudyError(f"--out {args.out}: is a file; expected an output folder")
     # one replay per configuration: the gate's and data statistics' warnings would repeat for each
-    for name in ("tactile_force.edge.data_stats", "tactile_force.edge.gate"):
+    for name in ("tactile_force.edge.data_stats", "tactile_force.edge.gate", "tactile_force.edge.runtime"):
         logging.getLogger(name).setLevel(logging.ERROR)
     command = "tactile-force study " + " ".join(shlex.quote(a) for a in sys.argv[2:]) \
         if len(sys.argv) > 1 and sys.argv[1] == "study" else "tactile-force study"

@@ -22,6 +22,8 @@ accurate one whose p99 is within the budget.
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 import math
 import os
@@ -360,7 +362,8 @@ def run_study(fp32: Path, data: Path, out: Path, options: StudyOptions | None = 
                              keep_float=list(s.keep_float),
                              name=f"{manifest.name}-{slug(name)}", overwrite=True,
                              max_calibration_frames=o.max_calibration_frames)
-        quantize_bundle(fp32, dest, qo, calibration=calib, eval_data=calib.subset(16))
+        with contextlib.redirect_stdout(io.StringIO()):  # onnxruntime's calibrator prints progress chatter
+            quantize_bundle(fp32, dest, qo, calibration=calib, eval_data=calib.subset(16))
         return dest
 
     for name, s in progress(configs, desc="study", enabled=o.show_progress):
@@ -392,7 +395,8 @@ def run_study(fp32: Path, data: Path, out: Path, options: StudyOptions | None = 
                                  name=f"sensitivity-{node}", overwrite=True,
                                  max_calibration_frames=o.max_calibration_frames)
             try:
-                quantize_bundle(fp32, tmp, qo, calibration=calib, eval_data=calib.subset(4))
+                with contextlib.redirect_stdout(io.StringIO()):
+                    quantize_bundle(fp32, tmp, qo, calibration=calib, eval_data=calib.subset(4))
             except TactileForceError as exc:
                 say(f"sensitivity {node}: not made: {exc}")
                 continue
