@@ -240,7 +240,7 @@ def pareto_front(points: Sequence[ParetoPoint]) -> list[int]:
 
 
 def error_vs_latency(points: Sequence[ParetoPoint], budget_ms: float | None, path: str | os.PathLike,
-                     ylabel: str = "mean relative error (RE)", title: str = "") -> Path:
+                     ylabel: str = "mean relative error (RE)", title: str = "", numbered: bool = False) -> Path:
     """Error against p99 latency, one point per model, the Pareto front joined by a line
     and the latency budget as a dashed vertical line.
 
@@ -254,6 +254,9 @@ def error_vs_latency(points: Sequence[ParetoPoint], budget_ms: float | None, pat
         The PNG to write.
     ylabel, title : str
         Y axis title; a title line above the plot.
+    numbered : bool
+        Label the points 1, 2, ... (their order in ``points``) instead of by name, for many
+        points (the caller lists the numbers, e.g. a table's ``#`` column).
 
     Returns
     -------
@@ -268,14 +271,15 @@ def error_vs_latency(points: Sequence[ParetoPoint], budget_ms: float | None, pat
         c.vline(budget_ms, RED, f"budget {budget_ms:g} ms")
     front = pareto_front(points)
     c.line([points[i].p99_ms for i in front], [points[i].error or 0.0 for i in front], GREEN, 1)
-    for p in points:
+    for i, p in enumerate(points):
+        label = str(i + 1) if numbered else p.label
         if p.error is None:
             px, py = c.xy(p.p99_ms, c.ylim[0])
             c.cv2.drawMarker(c.img, (px, py - 6), GREY, c.cv2.MARKER_TILTED_CROSS, 10, 2)
-            c.text(p.p99_ms, c.ylim[0] + 0.03 * (c.ylim[1] - c.ylim[0]), p.label, GREY)
+            c.text(p.p99_ms, c.ylim[0] + 0.03 * (c.ylim[1] - c.ylim[0]), label, GREY)
             continue
         c.points([p.p99_ms], [p.error], BLUE, 5, filled=p.measured)
-        c.text(p.p99_ms, p.error, p.label)
+        c.text(p.p99_ms, p.error, label)
     if title:
         c.legend(title)
     legend = "green: Pareto front"

@@ -461,13 +461,13 @@ def _row_text(c: Configuration) -> str:
 
 def table(report: StudyReport) -> tuple[list[str], list[list[str]]]:
     """Header and rows of the configurations table."""
-    head = ["configuration", "RE", "MAE (N)", "mean abs(f - fp32) (N)", "max abs(f - fp32) (N)", "inference p50 ms",
-            "total p50 ms", "total p99 ms", "Pareto", "within budget"]
+    head = ["#", "configuration", "RE", "MAE (N)", "mean abs(f - fp32) (N)", "max abs(f - fp32) (N)",
+            "inference p50 ms", "total p50 ms", "total p99 ms", "Pareto", "within budget"]
     rows = []
-    for c in report.configurations:
+    for i, c in enumerate(report.configurations, 1):
         e = c.error
         name = c.name + (" **(recommended)**" if c.name == report.recommended else "")
-        rows.append([name, _num(e.re_mean if e else None, 4), _num(e.mae_mean if e else None),
+        rows.append([str(i), name, _num(e.re_mean if e else None, 4), _num(e.mae_mean if e else None),
                      _num(e.vs_fp32_mae if e else None, 4), _num(e.vs_fp32_max if e else None, 4),
                      _num(c.latency_ms.inference_p50), _num(c.latency_ms.p50), _num(c.latency_ms.p99),
                      "yes" if c.pareto else "", "yes" if c.within_budget else "no"])
@@ -527,11 +527,10 @@ def write_study(report: StudyReport, out: Path) -> list[Path]:
     tmp.write_text(json.dumps(report.to_json(), indent=2) + "\n")
     os.replace(tmp, js)
     (out / STUDY_MD).write_text(markdown(report))
-    pts = [ParetoPoint(c.name.replace("int8-static ", "s8 ").replace(" per-channel", " pc").replace(" per-tensor",
-                                                                                                     " pt"),
-                       c.latency_ms.p99 if c.latency_ms.p99 is not None else math.nan,
+    pts = [ParetoPoint(c.name, c.latency_ms.p99 if c.latency_ms.p99 is not None else math.nan,
                        c.error.re_mean if c.error is not None else None) for c in report.configurations]
-    plot = error_vs_latency(pts, report.budget_ms, out / PLOT_PNG, title=f"{report.variant} study")
+    plot = error_vs_latency(pts, report.budget_ms, out / PLOT_PNG, numbered=True,
+                            title=f"{report.variant} study (points numbered as the table's # column)")
     return [js, out / STUDY_MD, plot]
 
 
