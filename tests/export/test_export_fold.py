@@ -70,13 +70,14 @@ def _head_ops(path, upto="Conv"):
     raise AssertionError(f"no {upto} in {path}")
 
 
-def test_folded_graph_is_transpose_cast_pool_conv_and_gives_the_same_forces(pair, aurova):
+def test_folded_graph_is_transpose_cast_conv_and_gives_the_same_forces(pair, aurova):
     folded, plain = pair
-    assert _head_ops(folded.onnx_path) == ["Transpose", "Cast", "AveragePool", "Conv"]
+    # the graph starts at the network resolution: the frame's 4x4 reduction is outside (issue 18)
+    assert _head_ops(folded.onnx_path) == ["Transpose", "Cast", "Conv"]
     assert {"Slice", "Div"} <= set(_head_ops(plain.onnx_path))
     g = onnx.load(str(folded.onnx_path)).graph
     assert g.node[0].input[0] == "rgb"  # the transpose runs on the uint8 input
-    data = CalibrationData.from_path(aurova, "rgbmod")
+    data = CalibrationData.from_path(aurova, "rgbmod").for_manifest(folded.manifest)
     run = lambda b: ort.InferenceSession(str(b.onnx_path), providers=["CPUExecutionProvider"]).run(  # noqa: E731
         ["force_n"], {"rgb": data.inputs["rgb"]})[0]
     a, b = run(folded), run(plain)
@@ -89,8 +90,8 @@ def test_manifest_says_what_was_folded(pair):
     folded, plain = pair
     m = folded.manifest
     assert m.architecture.preprocess_folded is True and plain.manifest.architecture.preprocess_folded is False
-    assert m.preprocessing[:3] == ["NHWC -> NCHW (uint8)", "cast uint8 -> float32",
-                                            "4x4 area average (AveragePool): 320x240 -> 80x60"]
+    assert m.preprocessing[:3] == ["frame 320x240 -> 80x60 outside the graph, once per frame: area-2x-steps x4 "
+                                   "(edge/reduce.py)", "NHWC -> NCHW (uint8)", "cast uint8 -> float32"]
     assert "BGR -> RGB (rgb input): folded into conv1's weights" in m.preprocessing
     assert "divide by 255: folded into conv1's weights" in m.preprocessing
     assert "divide by 255" in plain.manifest.preprocessing
@@ -101,7 +102,7 @@ def test_io_bound_predict_returns_fresh_arrays_that_match_the_session(pair, auro
     data = CalibrationData.from_path(aurova, "rgbmod")
     frames = data.inputs["rgb"]
     sess = ort.InferenceSession(str(folded.onnx_path), providers=["CPUExecutionProvider"])
-    ref = sess.run(["force_n"], {"rgb": frames})[0]
+    ref = sess.run(["force_n"], {"rgb": data.for_manifest(folded.manifest).inputs["rgb"]})[0]  # reduced frames
     m = OnnxForceModel(folded)
     one = m.predict(frames[:1])
     two = m.predict(frames[3:5])
@@ -121,10 +122,11 @@ def test_folded_rgbmod_d_exports_both_branches_with_parity(module_tmp, aurova):
     assert not any(n.op_type in ("Slice", "Div") for n in g.node)
     producers = {o: n for n in g.node for o in n.output}
     first = {}
-    for n in g.node:  # each input's path: Transpose -> Cast -> AveragePool -> Conv
-        if n.op_type == "Conv" and producers[n.input[0]].op_type == "AveragePool":
+    for n in g.node:  # each input's path: Transpose -> Cast -> Conv (the graph starts at the network resolution)
+        if n.op_type == "Conv" and producers[n.input[0]].op_type == "Cast":
             chain = [producers[n.input[0]]]
             while chain[-1].input[0] in producers:
                 chain.append(producers[chain[-1].input[0]])
             first[chain[-1].input[0]] = [c.op_type for c in reversed(chain)]
-    assert first == {"rgb": ["Transpose", "Cast", "AveragePool"], "depth": ["Transpose", "Cast", "AveragePool"]}
+    assert first == {"rgb": ["Transpose", "Cast"], "depth": ["Transpose", "Cast"]}
+    assert not any(n.op_type == "AveragePool" for n in g.node)

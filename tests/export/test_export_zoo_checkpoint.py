@@ -112,11 +112,16 @@ def test_bad_checkpoint_files_give_clear_errors(tmp_path, case):
 
 def test_preprocess_matches_opencv_area_resize_and_colour_swap(aurova):
     frame = cv2.imread(str(aurova / "images" / "1508.png"))
-    expected = cv2.resize(cv2.cvtColor(frame, cv2.COLOR_BGR2RGB).astype(np.float32), (60, 80),
-                          interpolation=cv2.INTER_AREA) / 255.0
+    # the runtime's one reduction (edge/reduce.py: two exact 2x2 box averages, OpenCV INTER_AREA), bit for bit
+    half = cv2.resize(frame, (120, 160), interpolation=cv2.INTER_AREA)
+    reduced = cv2.resize(half, (60, 80), interpolation=cv2.INTER_AREA)
+    expected = cv2.cvtColor(reduced, cv2.COLOR_BGR2RGB).astype(np.float32) / 255.0
     got = Preprocess(0.25, "rgb")(torch.from_numpy(frame[None]))
     assert tuple(got.shape) == (1, 3, 80, 60)
     np.testing.assert_allclose(got[0].permute(1, 2, 0).numpy(), expected, atol=1e-6)
+    exact = cv2.resize(cv2.cvtColor(frame, cv2.COLOR_BGR2RGB).astype(np.float32), (60, 80),
+                       interpolation=cv2.INTER_AREA) / 255.0
+    assert np.abs(got[0].permute(1, 2, 0).numpy() - exact).max() <= 1.0 / 255 + 1e-6  # within a grey level
     depth = cv2.imread(str(aurova / "filt_img_depth" / "depth_img_1508.png"), cv2.IMREAD_GRAYSCALE)
     d = Preprocess(1.0, "depth")(torch.from_numpy(depth[None, :, :, None]))
     np.testing.assert_allclose(d[0, 0].numpy(), depth / 255.0, atol=1e-7)
