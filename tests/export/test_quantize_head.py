@@ -48,7 +48,7 @@ def test_float_head_is_the_default_and_is_closer_to_fp32(fp32, module_tmp, aurov
     assert _head_inputs_quantized(quant.onnx_path)
     extra = set(kept.manifest.quantization.kept_float) - set(quant.manifest.quantization.kept_float)
     assert len(extra) == 4  # three poolings and the concat
-    x = {"rgb": calib.inputs["rgb"]}
+    x = {"rgb": calib.for_manifest(fp32.manifest).inputs["rgb"]}  # the graph reads the reduced 80x60 frames
     ref = ort.InferenceSession(str(fp32.onnx_path)).run(["force_n"], x)[0]
     a = ort.InferenceSession(str(kept.onnx_path)).run(["force_n"], x)[0]
     b = ort.InferenceSession(str(quant.onnx_path)).run(["force_n"], x)[0]
