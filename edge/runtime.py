@@ -39,6 +39,7 @@ import logging
 import math
 import threading
 import time
+import weakref
 from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -180,25 +181,38 @@ class LatencyWindow:
 
 
 _USERS_LOCK = threading.Lock()
-#: id(model) -> [open runtimes using it, an owning runtime has closed]; the open runtimes hold the model alive.
-_USERS: dict[int, list] = {}
+#: model -> [open runtimes using it, an owning runtime has closed]; weak keys: a runtime that was
+#: never closed leaves no entry behind once its model is gone (ids would be reused).
+_USERS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+_USERS_BY_ID: dict[int, list] = {}  # models that cannot be weakly referenced (held alive by their runtimes)
+
+
+def _entry(model: object, default: int) -> list:
+    try:
+        return _USERS.setdefault(model, [default, False])
+    except TypeError:  # not weakly referenceable / not hashable
+        return _USERS_BY_ID.setdefault(id(model), [default, False])
 
 
 def _attach(model: object) -> None:
     with _USERS_LOCK:
-        _USERS.setdefault(id(model), [0, False])[0] += 1
+        _entry(model, 0)[0] += 1
 
 
 def _detach(model: object, owner: bool) -> bool:
     """One runtime less uses ``model``; True when the model is to be closed now: the last
     runtime has closed and one of them owned it."""
     with _USERS_LOCK:
-        entry = _USERS.setdefault(id(model), [1, False])
+        entry = _entry(model, 1)
         entry[0] -= 1
         entry[1] = entry[1] or owner
         if entry[0] > 0:
             return False
-        del _USERS[id(model)]
+        try:
+            _USERS.pop(model, None)
+        except TypeError:
+            pass
+        _USERS_BY_ID.pop(id(model), None)
         return bool(entry[1])
 
 
