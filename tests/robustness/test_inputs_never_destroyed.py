@@ -20,7 +20,6 @@ from tactile_force.edge.errors import BundleError, TactileForceError
 from tactile_force.edge.scene import default_bundle_path
 
 from benchmarks.robustness import make_dataset, write_frame_png
-
 from tests.conftest import shared_data
 
 TF_CLI = Path(__file__).with_name("tf_cli.py")
