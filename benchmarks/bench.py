@@ -21,6 +21,7 @@ import logging
 import math
 import os
 import re
+import sys
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -258,10 +259,12 @@ def _depth_factory(manifest) -> Callable[[], object] | None:
     return lambda: build_depth_stage(None, manifest)
 
 
-def replay_readings(bundle: Path, data: Path, background: Path | None, threads: int = 1) -> list:
+def replay_readings(bundle: Path, data: Path, background: Path | None, threads: int = 1,
+                    warn: Callable[[str], None] | None = None) -> list:
     """The readings with truth of ``bundle`` on the labelled folder ``data`` (authors' layout),
     replayed through the runtime exactly as ``tactile-force run --source DATA --bundle BUNDLE
-    --background BG`` builds it (list of ForceReading, in frame order).
+    --background BG`` builds it (list of ForceReading, in frame order). ``warn``: gets the
+    scene's warnings (default: dropped).
 
     Raises a TactileForceError subclass (exit 2) when ``data``, ``background`` or ``bundle``
     is unusable."""
@@ -270,7 +273,7 @@ def replay_readings(bundle: Path, data: Path, background: Path | None, threads: 
     scene = scene_from_flags(str(data), bundle=str(bundle), background=str(background) if background else None)
     scene.threads = threads
     scene = check_scene(scene)
-    built = build_scene(scene, warn=lambda m: None)
+    built = build_scene(scene, warn=warn or (lambda m: None))
     readings: list = []
     try:
         built.runtime.run([], on_reading=lambda r: readings.append(r) if r.truth_n is not None else None)
@@ -280,7 +283,7 @@ def replay_readings(bundle: Path, data: Path, background: Path | None, threads: 
 
 
 def replay_error(bundle: Path, data: Path, background: Path | None, threads: int = 1,
-                 readings: list | None = None) -> BenchError | None:
+                 readings: list | None = None, warn: Callable[[str], None] | None = None) -> BenchError | None:
     """Error of ``bundle`` on the labelled folder ``data`` as ``tactile-force run`` reports it
     (:func:`replay_readings`, then :func:`tactile_force.edge.cli_runtime.readings_error`);
     None when no frame got a CNN reading. ``readings``: an earlier replay's, to reuse.
@@ -291,7 +294,7 @@ def replay_error(bundle: Path, data: Path, background: Path | None, threads: int
     from tactile_force.edge.errors import DatasetError
 
     if readings is None:
-        readings = replay_readings(bundle, data, background, threads)
+        readings = replay_readings(bundle, data, background, threads, warn)
     rep, n_truth, missed = readings_error(readings)
     if not n_truth:
         raise DatasetError(f"--data {data}: no frame with a true force (expected the authors' layout: "
@@ -445,7 +448,8 @@ def run_bench(bundles: Sequence[Path], frames: int = 1000, threads: int = 1, bud
             r = bench_bundle(Path(path), pool, frames, threads, budget_ms, repeats, pause_s, window=window,
                              sleep=sleep)
             if data is not None:
-                r.error = replay_error(Path(path), Path(data), Path(background) if background else None, threads)
+                r.error = replay_error(Path(path), Path(data), Path(background) if background else None, threads,
+                                       warn=lambda m: print(f"warning: {m}", file=sys.stderr))
             results.append(r)
     finally:
         cv2.setNumThreads(prev)
