@@ -97,9 +97,12 @@ class ForceInterval:
     -----
     Split conformal prediction, Mondrian (class-conditional) by estimate bin. For each
     calibration pair the score is ``s = |y - f| / max(f, floor)`` with ``f`` the estimate as
-    the runtime reports it (clamped to [0, 15] N), ``y`` the true force. For a saturated
-    estimate (``f >= 15`` N, whose interval is open above) only the lower side counts:
-    ``s = max(f - y, 0) / f``. In each bin with ``n`` scores the half-width factor is the
+    the runtime reports it (clamped to [0, 15] N), ``y`` the true force and ``floor``
+    ``scale_floor_n`` (5 N: below it the half-width is absolute, above it relative). For a
+    saturated reading (``f >= 15`` N, or flagged ``saturated`` by the runtime; its interval
+    is open above) only the lower side counts: ``s = max(f - y, 0) / max(f, floor)``; a
+    saturated reading whose bin was fitted on two-sided scores gets a lower bound at least as
+    low as needed (conservative). In each bin with ``n`` scores the half-width factor is the
     ``ceil((n + 1) * coverage)``-th smallest score; a reading with estimate ``f`` in that bin
     gets ``[max(f - q * max(f, floor), 0), f + q * max(f, floor)]`` (upper +inf when
     saturated). If calibration and use are exchangeable, each bin's interval holds the true
@@ -109,7 +112,14 @@ class ForceInterval:
     a single bin still too small gives ``q`` None: the interval is unknown, not invented.
     The lower bound is clipped at 0 N (a normal force is never negative): that removes only
     impossible values, the coverage is unchanged. Frames of one grasp are correlated, so the
-    guarantee is over grasps like the ones calibrated on, not per frame.
+    guarantee is over grasps like the ones calibrated on, not per frame; an
+    ``out_of_distribution`` frame is by definition not like them (its interval is kept, its
+    coverage is not guaranteed). ``no_contact_high_n`` is the same quantile of the true
+    forces of gate-closed frames (a one-sided bound, lower bound 0).
+
+    References: Vovk, Gammerman and Shafer, *Algorithmic Learning in a Random World* (2005),
+    Mondrian conformal predictors; Lei et al., "Distribution-free predictive inference for
+    regression", JASA 2018 (split conformal, locally weighted scores).
     """
 
     coverage: float = DEFAULT_COVERAGE
