@@ -109,7 +109,7 @@ def test_scene_output_frames_only_and_zero_cost_without(tmp_path, monkeypatch, r
     with_frames, plain = _by_topic(tmp_path / "frames.mcap"), _by_topic(tmp_path / "plain.mcap")
     assert len(with_frames["/tactile/right/image/compressed"]) == 11
     assert "/tactile/right/contact_mask/compressed" not in with_frames
-    assert set(plain) == {"/tactile/force", "/tactile/force/diagnostics"}
+    assert set(plain) == {"/tactile/force", "/tactile/force/diagnostics", "/tactile/force/interval"}
 
     # No writer wants frames: nothing is copied or kept.
     built = build_scene(load_scene(scene_file))
