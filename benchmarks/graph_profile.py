@@ -3,7 +3,7 @@
     python -m benchmarks.graph_profile                 # table to stdout
     python -m benchmarks.graph_profile --runs 3000
 
-Every variant is timed in one run, round-robin frame by frame (one intra-op thread,
+Every variant is timed in one run, round-robin frame by frame in a rotating order (one intra-op thread,
 sequential, batch 1, the same reduced 80x60 frames), as a ratio to the shipped graph with the
 runtime's session options, so machine load cancels:
 
@@ -175,7 +175,9 @@ def measure(runs: int = 2000, bundle: Path = DEFAULT_DIR) -> list[list[object]]:
     times: list[list[float]] = [[] for _ in vs]
     for i in range(runs):
         x = frames[i % len(frames)][None]
-        for j, (_, sess, feed) in enumerate(vs):
+        for r in range(len(vs)):  # rotate the order every round: no variant always follows the same one
+            j = (i + r) % len(vs)
+            _, sess, feed = vs[j]
             t0 = time.perf_counter_ns()
             sess.run(None, feed(x))
             times[j].append((time.perf_counter_ns() - t0) / 1e3)
