@@ -444,7 +444,66 @@ def install_shipped_bundle(folder: str, bundle: Path) -> Path:
     m.data_stats = default_data_stats()
     if hasattr(m, "data_stats_missing"):
         m.data_stats_missing = ""
-    return write_bundle(REPO / "edge" / "models" / folder, src.onnx_path.read_bytes(), m, overwrite=True).path
+    m.provenance.extra["node_metadata_stripped"] = True
+    m.provenance.extra["identity_input_quantizers_dropped"] = True
+    graph = strip_node_metadata(src.onnx_path.read_bytes())
+    if m.quantization is not None:
+        import onnx
+        from tactile_force.export.graph import op_counts
+
+        m.quantization.op_counts = dict(op_counts(onnx.load_from_string(graph)))
+    path = write_bundle(REPO / "edge" / "models" / folder, graph, m, overwrite=True).path
+    from .interval_fit import fit_bundle
+
+    fit_bundle(path)  # the reading interval of this graph (the source's was fitted on another sha256)
+    return path
+
+
+def strip_node_metadata(model_bytes: bytes) -> bytes:
+    """The graph without its nodes' doc strings and metadata (the exporter's source locations)
+    and without identity input quantizers: the same computation, about a fifth smaller.
+
+    An int8 graph's uint8 input that runs Transpose -> Cast -> QuantizeLinear(scale 1, zero
+    point 0, uint8) is its own quantized value: the Transpose's output feeds the quantizer's
+    users and the Cast and the QuantizeLinear go (the exact rewrite export/network_input.py
+    applies to the default bundle)."""
+    import onnx
+    from onnx import numpy_helper
+
+    model = onnx.load_from_string(model_bytes)
+    g = model.graph
+    for node in g.node:
+        del node.metadata_props[:]
+        node.doc_string = ""
+    inits = {t.name: t for t in g.initializer}
+
+    def users(name: str) -> list:
+        return [n for n in g.node if name in n.input]
+
+    for inp in g.input:
+        t = users(inp.name)
+        if len(t) != 1 or t[0].op_type != "Transpose":
+            continue
+        c = users(t[0].output[0])
+        if len(c) != 1 or c[0].op_type != "Cast":
+            continue
+        q = users(c[0].output[0])
+        if len(q) != 1 or q[0].op_type != "QuantizeLinear" or len(q[0].input) < 3:
+            continue
+        scale, zp = inits.get(q[0].input[1]), inits.get(q[0].input[2])
+        if scale is None or zp is None:
+            continue
+        sv, zv = numpy_helper.to_array(scale), numpy_helper.to_array(zp)
+        if not (sv.size == 1 and float(sv) == 1.0 and zv.size == 1 and int(zv) == 0 and zv.dtype == np.uint8):
+            continue
+        for n in users(q[0].output[0]):
+            for i, x in enumerate(n.input):
+                if x == q[0].output[0]:
+                    n.input[i] = t[0].output[0]
+        g.node.remove(c[0])
+        g.node.remove(q[0])
+    onnx.checker.check_model(model)
+    return model.SerializeToString()
 
 
 # ----------------------------------------------------------------------------- CLI
