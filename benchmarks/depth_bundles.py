@@ -12,8 +12,8 @@
    other on the same frame, so both see the same machine load; the ratio is the figure
    (issue 18 goal: <= 1.5). The D bundle is interleaved too.
 
-No torch is needed for the measurement (the test split's frames are read from the reference
-cache; regenerate them with ``python -m benchmarks.reference`` if absent).
+No torch is needed for the measurement (the test split's frames come from the reference
+dataset, rendered by the virtual DIGIT on first use and cached in benchmarks/cache).
 """
 
 from __future__ import annotations
@@ -49,9 +49,7 @@ def _test_split(limit: int = 0):
     """(frames (N,320,240,3) uint8, forces (N,), led gains per frame, grasp id per frame)."""
     from . import reference
 
-    root = reference.dataset_root()
-    if not (root / "DONE").is_file():
-        raise SystemExit(f"{root}: the reference dataset is missing; run python -m benchmarks.reference first")
+    root = reference.ensure_dataset()  # rendered once (virtual DIGIT, no torch) and cached
     data = reference.load_arrays(root)
     idx = data.select("test")
     if limit:
