@@ -52,6 +52,8 @@ _log = logging.getLogger(__name__)
 #: Thumbnail cell size in full-resolution pixels (a 320x240 frame -> 20x15 cells).
 THUMB_CELL_PX = 16
 
+_UINT8 = np.dtype(np.uint8)
+
 
 @dataclass
 class GateOptions:
@@ -285,8 +287,14 @@ class ContactGate:
         self._relearned_now = False
         self._shape: tuple[int, int, int] | None = None
         self._contact = False
-        self._gain = np.ones(3, np.float32)
-        self._offset = np.zeros(3, np.float32)
+        # The per-channel photometric model (frame = gain x background + offset) as the 3 x 4
+        # matrix cv2.transform applies; _gain (its diagonal) and _offset (its last column) are
+        # views into it, so the fit writes the matrix directly.
+        self._M = np.zeros((3, 4), np.float32)
+        self._gain = self._M.reshape(-1)[::5]
+        self._offset = self._M[:, 3]
+        self._gain[:] = 1.0
+        self._level: tuple[float, float, float] | None = None  # mean colour of _bg_thumb (cached)
         self._bg_noise = 1.0
         self._mismatch = ""
         self._mismatch_kind = ""
@@ -376,7 +384,7 @@ class ContactGate:
 
     def update(self, frame: np.ndarray | TimedFrame) -> GateResult:
         """Gate one frame (HxWx3 uint8 BGR, same size as the background)."""
-        arr = self._as_array(frame, None)
+        arr = frame if frame is self._reduced_for else self._as_array(frame, None)  # reduce() checked it
         work, thumb = self._prepare(arr)
         o = self.options
         if self._bg is None:
@@ -399,12 +407,10 @@ class ContactGate:
             return r
 
         np.copyto(self._thumb_f, thumb, casting="unsafe")
-        y = self._thumb_f.reshape(-1, 3)
+        y = self._y
         self._fit(final=o.trust)
         # Model of the frame = background x gain + offset per channel (uint8), then the max
         # over B, G, R of |frame - model| > threshold <=> not all channels within [0, t].
-        self._M[self._diag] = self._gain
-        self._M[:, 3] = self._offset
         cv2.transform(self._bg, self._M, dst=self._model_f)
         cv2.convertScaleAbs(self._model_f, dst=self._model)
         cv2.absdiff(work, self._model, dst=self._ad)
@@ -465,6 +471,7 @@ class ContactGate:
             cv2.accumulateWeighted(thumb, self._bg_thumb, o.refresh_rate)
             assert self._ref is not None
             self._ref.refreshed()
+            self._level = None
 
         small = self._mask if (s > 1 and self._exact) else self._full_mask
         full = self._mask if s == 1 else self._full_mask
@@ -483,8 +490,6 @@ class ContactGate:
         """|thumbnail - (gain x background + offset)| per cell and channel into ``_tres``, the
         cells within ``fit_tolerance`` on every channel into ``_inl``; returns their count."""
         assert self._bg_thumb is not None
-        self._M[self._diag] = self._gain
-        self._M[:, 3] = self._offset
         cv2.transform(self._bg_thumb, self._M, dst=self._tmodel)
         cv2.absdiff(self._thumb_f, self._tmodel, dst=self._tres)
         cv2.inRange(self._tres, self._zero, self._tol, dst=self._inl)
@@ -500,14 +505,15 @@ class ContactGate:
         cells = self._inl.size
         mask = self._inl if self._residual() >= cells // 2 else None
         cv2.multiply(bg, self._thumb_f, dst=self._txy)
-        mx, sx = cv2.meanStdDev(bg, mask=mask)
+        cv2.meanStdDev(bg, self._mx, self._sx, mask)
         my = cv2.mean(self._thumb_f, mask=mask)
         mxy = cv2.mean(self._txy, mask=mask)
-        for c in range(3):
-            m, var = float(mx[c, 0]), float(sx[c, 0]) ** 2
+        M = self._M
+        for c, m, s in zip(range(3), self._mx[:, 0].tolist(), self._sx[:, 0].tolist()):
+            var = s ** 2
             g = (mxy[c] - m * my[c]) / var if var > 1e-3 else 0.0
-            self._gain[c] = g
-            self._offset[c] = my[c] - g * m
+            M[c, c] = g
+            M[c, 3] = my[c] - g * m
         if final:
             self._fit_frac = self._residual() / cells
 
@@ -520,11 +526,15 @@ class ContactGate:
         assert ref is not None
         invalid = ""
         assert self._bg_thumb is not None
-        level = cv2.mean(self._bg_thumb)
+        if self._level is None:  # the background thumbnail's mean colour: re-made when it changes
+            self._level = cv2.mean(self._bg_thumb)[:3]
+        l0, l1, l2 = self._level
         gain, offset = self._gain.tolist(), self._offset.tolist()
-        step = max(abs((gain[c] - 1.0) * level[c] + offset[c]) for c in range(3))
+        g0, g1, g2 = gain
+        step = max(abs((g0 - 1.0) * l0 + offset[0]), abs((g1 - 1.0) * l1 + offset[1]),
+                   abs((g2 - 1.0) * l2 + offset[2]))
         global_change = self._fit_frac < o.fit_floor
-        contrast = max(abs(g - 1.0) for g in gain)
+        contrast = max(abs(g0 - 1.0), abs(g1 - 1.0), abs(g2 - 1.0))
         photometric = step > o.step_level or contrast > 0.5
         # Pixel noise: mean |frame - blurred| against the background's level. Measured on every
         # frame: the box-averaged image the rest of the gate judges hides a noise burst.
@@ -684,6 +694,7 @@ class ContactGate:
         self.background_image, self.background_origin = None, ""  # capture_background sets them again
         self._bg = bg
         self._bg_thumb = thumb
+        self._level = None
         self._ref = _Reference(thumb)
         self._gain[:] = 1.0
         self._offset[:] = 0.0
@@ -694,6 +705,10 @@ class ContactGate:
     # -- internals ----------------------------------------------------------------------
     def _as_array(self, frame: np.ndarray | TimedFrame, i: int | None) -> np.ndarray:
         arr = frame.frame if isinstance(frame, TimedFrame) else frame
+        if (type(arr) is np.ndarray and arr.dtype is _UINT8 and arr.shape == self._shape
+                and arr.flags.c_contiguous):  # the usual frame: what check_frame would pass as it is
+            self._last_frame = arr
+            return arr
         name = "gate frame" if i is None else f"background frame {i}"
         arr = check_frame(arr, name=name, shape=None)
         if self._shape is None:
@@ -721,11 +736,13 @@ class ContactGate:
         self._txy = np.empty((th, tw, 3), np.float32)
         self._inl = np.full((th, tw), 255, np.uint8)
         self._tol = np.full(3, float(o.fit_tolerance), np.float64)
+        self._mx = np.empty((3, 1), np.float64)  # meanStdDev outputs, reused
+        self._sx = np.empty((3, 1), np.float64)
+        self._y = self._thumb_f.reshape(-1, 3)  # a view: the thumbnail's cells x B, G, R
         self._fit_frac = 1.0
         self._model_f = np.empty((wh, ww, 3), np.float32)
         self._model = np.empty((wh, ww, 3), np.uint8)
         self._ad = np.empty((wh, ww, 3), np.uint8)
-        self._M = np.zeros((3, 4), np.float32)
         self._zero = np.zeros(3, np.float64)
         self._thr = np.full(3, float(o.threshold), np.float64)
         self._sat = np.full(3, float(o.saturation_threshold), np.float64)
@@ -738,7 +755,6 @@ class ContactGate:
         self._min_blob = o.min_blob_frac * self._work_area
         self._kernel = (cv2.getStructuringElement(cv2.MORPH_RECT, (o.open_px, o.open_px)) if o.open_px > 1
                         else None)
-        self._diag = (np.arange(3), np.arange(3))
         # The one downscale per frame: an exact box average (edge/reduce.py) when the factor
         # divides the frame (what a compact bundle's network input is), else INTER_AREA.
         self._reducer = FrameReducer(default_reduction(s), self._shape) if self._exact and s > 1 else None
