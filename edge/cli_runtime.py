@@ -233,7 +233,9 @@ def _run_scene(args: argparse.Namespace):
     if args.scene:
         if given:
             raise SceneError(f"{', '.join(given)}: only with --source; a scene file sets these itself")
-        return load_scene(args.scene)
+        scene = load_scene(args.scene)
+        _guard_scene_outputs(scene, args.scene, force=getattr(args, "force", False))
+        return scene
     if not args.source:
         raise SceneError("give --scene FILE, or --source SRC [--bundle B] (see tactile-force run --help)")
     from .output_guard import OutputKind, check_input, check_output
@@ -256,6 +258,21 @@ def _run_scene(args: argparse.Namespace):
     check_scene(scene)
     _check_depth_mapping(scene)
     return scene
+
+
+def _guard_scene_outputs(scene, scene_file: str, force: bool) -> None:
+    """The output guard for a scene file's file outputs (csv, jsonl, mcap): an existing file
+    needs ``--force``, and no output may be or lie inside one of the scene's inputs (the scene
+    file, its bundles, replay folders, backgrounds)."""
+    from .output_guard import OutputKind, check_output
+
+    inputs: list[tuple[str, str | os.PathLike | None]] = [("--scene", scene_file)]
+    inputs += [("bundle", b) for b in scene.bundles if str(b) != "default"]
+    for s in scene.sensors:
+        inputs += [(f"sensor {s.name} path", s.path), (f"sensor {s.name} background", s.background)]
+    for k, o in enumerate(scene.outputs):
+        if o.path is not None and o.kind in ("csv", "jsonl", "mcap"):
+            check_output(o.path, inputs, force=force, kind=OutputKind.FILE, flag=f"{scene_file}: output[{k}].path")
 
 
 def _check_depth_mapping(scene) -> None:

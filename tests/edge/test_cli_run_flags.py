@@ -93,7 +93,9 @@ def test_save_scene_round_trips_and_runs(tmp_path, monkeypatch, rgb_bundle, auro
     first = scene_from_flags(str(aurova_dir), bundle=str(rgb_bundle), background=str(aurova_bg), outputs=["a.csv"],
                              fps=200.0)
     assert again.sensors == first.sensors and again.outputs == first.outputs and again.bundles == first.bundles
-    assert cli_main(["run", "--scene", str(saved)]) == 0
+    assert cli_main(["run", "--scene", str(saved)]) == 2  # a.csv exists: refused without --force
+    assert "already exists" in capsys.readouterr().err
+    assert cli_main(["run", "--scene", str(saved), "--force"]) == 0
     assert len((tmp_path / "a.csv").read_text().splitlines()) == 12
 
 

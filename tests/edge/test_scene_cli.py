@@ -88,7 +88,7 @@ def test_cpu_rgbmod_scene_imports_no_torch_or_device_libraries(tmp_path, rgb_bun
         depth_built = [s.depth is not None for s in built.runtime.sensors]
         stages = built.runtime.stages
         built.close()
-        rc = main(["run", "--scene", {str(p)!r}])
+        rc = main(["run", "--scene", {str(p)!r}, "--force"])  # build_scene above wrote the CSV
         heavy = [m for m in ("torch", "depthai", "usb", "hid", "onnx", "matplotlib") if m in sys.modules]
         print(json.dumps({{"rc": rc, "heavy": heavy, "depth_built": depth_built, "stages": stages}}))
         """)
