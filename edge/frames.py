@@ -18,6 +18,8 @@ FRAME_ROWS = 320
 FRAME_COLS = 240
 FRAME_SHAPE = (FRAME_ROWS, FRAME_COLS, 3)
 
+_UINT8 = np.dtype(np.uint8)
+
 #: Mean intensity (0..255) under which a frame counts as all-dark, over which all-white.
 DARK_LEVEL = 8.0
 WHITE_LEVEL = 247.0
@@ -56,6 +58,10 @@ def check_frame(
     Raises :class:`FrameError` naming ``name`` on a non-array, wrong dtype, wrong shape,
     or an empty array. ``shape=None`` accepts any H x W x 3.
     """
+    if type(frame) is np.ndarray and frame.dtype is _UINT8 and frame.flags.c_contiguous and (
+            frame.shape == shape if shape is not None
+            else frame.ndim == 3 and frame.shape[2] == 3 and frame.size):  # the usual frame: as it is
+        return frame
     if not isinstance(frame, np.ndarray):
         raise FrameError(f"{name}: expected a numpy.ndarray (H x W x 3 uint8 BGR), got {type(frame).__name__}")
     if frame.size == 0:
@@ -86,6 +92,9 @@ def check_batch(x: object, name: str, shape: tuple[int, ...], max_batch: int | N
     """Validate a model input batch (N, *shape) uint8, e.g. (N, 320, 240, 3) BGR frames or
     (N, 320, 240, 1) depth images; FrameError naming ``name`` otherwise. Every inference
     backend (CPU, OAK) checks its inputs with this."""
+    if (type(x) is np.ndarray and x.dtype is _UINT8 and x.ndim == len(shape) + 1 and x.shape[1:] == tuple(shape)
+            and x.shape[0] >= 1 and (max_batch is None or x.shape[0] <= max_batch)):
+        return x  # the usual batch (the messages below are built only for a bad one)
     want = f"(N, {', '.join(map(str, shape))}) uint8"
     if not isinstance(x, np.ndarray):
         raise FrameError(f"{name}: expected a numpy.ndarray {want}, got {type(x).__name__}")
@@ -113,7 +122,10 @@ def exposure_problem(frame: np.ndarray) -> str | None:
     # and inRange are SIMD passes over the frame, tens of microseconds for 320x240x3.
     import cv2  # here, so that importing tactile_force.edge stays light
 
-    mean = float(np.mean(cv2.mean(frame)[:frame.shape[2] if frame.ndim == 3 else 1]))
+    m = cv2.mean(frame)
+    cn = frame.shape[2] if frame.ndim == 3 else 1
+    # the mean of the channel means, summed in order as np.mean of up to 4 values does
+    mean = (m[0] + m[1] + m[2]) / 3.0 if cn == 3 else float(np.mean(m[:cn]))
     if mean < DARK_LEVEL:
         return "all-dark"
     if mean > WHITE_LEVEL:

@@ -303,6 +303,7 @@ class ContactGate:
         self._given = 0  # live frames still to check against a background given at start
         self._given_origin = ""
         self._reduced_for: np.ndarray | None = None  # the frame reduce() was called for
+        self._reduction: FrameReduction | None = None
         self.relearned = 0  # how many times the background was re-learnt after a mismatch
         #: the first full-resolution frame given to :meth:`capture_background` (HxWx3 uint8 BGR;
         #: None while the background is learnt from live frames): the runtime checks it once for
@@ -320,7 +321,11 @@ class ContactGate:
         """How the gate reduces each frame before judging it (method and factor ``downscale``);
         the runtime hands :attr:`GateResult.reduced` to a model whose network input is
         reduced the same way."""
-        return default_reduction(int(self.options.downscale))
+        k = int(self.options.downscale)
+        red = self._reduction
+        if red is None or red.factor != k:  # made once (the runtime asks for it every frame)
+            red = self._reduction = default_reduction(k)
+        return red
 
     @property
     def frame_shape(self) -> tuple[int, int, int] | None:
@@ -425,17 +430,16 @@ class ContactGate:
                 cv2.morphologyEx(self._mask, cv2.MORPH_OPEN, self._kernel, dst=self._mask)
             # Keep blobs big enough to be contact, filled (a ball's flat top looks like background).
             contours, _ = cv2.findContours(self._mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
-            self._mask[:] = 0
+            self._mask.fill(0)
             keep = [c for c in contours if cv2.contourArea(c) >= self._min_blob]
             if keep:
                 if o.convex_hull:
                     keep = [cv2.convexHull(c) for c in keep]
                 cv2.drawContours(self._mask, keep, -1, 255, thickness=cv2.FILLED)
                 area_small = cv2.countNonZero(self._mask)
-                if area_small >= o.saturation_area_frac * self._work_area:  # else the strong area cannot be
-                    cv2.inRange(self._ad, self._zero, self._sat, dst=self._strong)
-                    strong = self._work_area - cv2.countNonZero(self._strong)
-                    saturation_seen = strong >= o.saturation_area_frac * self._work_area
+                limit = o.saturation_area_frac * self._work_area
+                if area_small >= limit:  # else the strong area cannot be
+                    saturation_seen = self._strong_area_reaches(limit)
                 deformation = max(cv2.mean(self._ad, mask=self._mask)[:3])
 
         s = int(o.downscale)
@@ -484,6 +488,22 @@ class ContactGate:
         r.gain = tuple(self._gain.tolist())
         r.offset = tuple(self._offset.tolist())
         return r
+
+    def _strong_area_reaches(self, limit: float) -> bool:
+        """True when the pixels with a channel of ``_ad`` above ``saturation_threshold`` cover
+        ``limit`` working pixels or more. The changed channel values are counted first (one
+        threshold + countNonZero): a pixel holds 1 to 3 of them, so that count alone decides
+        unless it lies within [limit, 3 x limit); then the pixels are counted exactly."""
+        ub = self._sat_level
+        if ub >= 0:
+            cv2.threshold(self._ad, ub, 255, cv2.THRESH_BINARY, dst=self._ad_strong)
+            values = cv2.countNonZero(self._ad_strong_flat)
+            if values < limit:
+                return False
+            if values >= 3 * limit:
+                return True
+        cv2.inRange(self._ad, self._zero, self._sat, dst=self._strong)
+        return self._work_area - cv2.countNonZero(self._strong) >= limit
 
     # -- trust ----------------------------------------------------------------------------
     def _residual(self) -> int:
@@ -749,6 +769,11 @@ class ContactGate:
         self._exact = s == 1 or (h % s == 0 and w % s == 0)
         self._mask = np.empty((wh, ww), np.uint8)
         self._strong = np.empty((wh, ww), np.uint8)
+        self._ad_strong = np.empty((wh, ww, 3), np.uint8)
+        self._ad_strong_flat = self._ad_strong.reshape(wh, ww * 3)  # a view: one value per channel
+        # inRange's upper bound on uint8 is the threshold rounded half to even (saturate_cast):
+        # the same integer makes cv2.threshold (value > ub) agree with it exactly.
+        self._sat_level = min(255, round(float(o.saturation_threshold)))
         self._full_mask = self._mask if s == 1 else np.zeros((h, w), np.uint8)
         self._work_area = wh * ww
         self._full_area = h * w

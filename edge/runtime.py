@@ -59,6 +59,8 @@ _log = logging.getLogger(__name__)
 
 STAGES = ("source", "gate", "depth", "inference", "total")
 _NO_CONTACT, _SATURATED = int(Flags.NO_CONTACT), int(Flags.SATURATED)
+_STALE, _LATE, _INVALID = int(Flags.STALE), int(Flags.LATE), int(Flags.INVALID_INPUT)
+_MISMATCH, _OOD = int(Flags.BACKGROUND_MISMATCH), int(Flags.OUT_OF_DISTRIBUTION)
 
 
 class ForceModel(Protocol):
@@ -864,18 +866,20 @@ class ForceRuntime:
     def _count(self, r: ForceReading) -> None:
         st = self.stats
         st.readings += 1
-        f = r.flags
-        if Flags.STALE in f:
+        f = int(r.flags)  # plain int tests: IntFlag's `in` costs about a microsecond each
+        if f & _STALE:
             st.stale += 1
             return
         st.processed += 1
-        if Flags.NO_CONTACT in f:
+        if not f:
+            return
+        if f & _NO_CONTACT:
             st.no_contact += 1
-        if Flags.LATE in f:
+        if f & _LATE:
             st.late += 1
-        if Flags.INVALID_INPUT in f:
+        if f & _INVALID:
             st.invalid += 1
-        if Flags.BACKGROUND_MISMATCH in f:
+        if f & _MISMATCH:
             st.background_mismatch += 1
-        if Flags.OUT_OF_DISTRIBUTION in f:
+        if f & _OOD:
             st.out_of_distribution += 1
