@@ -8,8 +8,8 @@ from __future__ import annotations
 import time
 
 import pytest
-from tactile_force.edge import scene as scene_mod
 from tactile_force.edge.scene import build_scene, parse_scene, scene_from_flags, scene_to_toml
+from tactile_force.edge.scene import kinds as scene_mod
 from tactile_force.firmware_bridge import DeviceKind
 from tactile_force.firmware_bridge.hotplug import HotplugSource, UdevWatcher
 

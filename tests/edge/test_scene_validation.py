@@ -250,7 +250,8 @@ def _table_of(keys):
 def test_any_scene_table_parses_or_names_the_problem(tmp_path):
     from hypothesis import HealthCheck, given, settings
     from hypothesis import strategies as st
-    from tactile_force.edge.scene import _DEPTH_KEYS, _OUTPUT_KEYS, _RUNTIME_KEYS, SOURCE_KINDS, parse_scene
+    from tactile_force.edge.scene import SOURCE_KINDS, parse_scene
+    from tactile_force.edge.scene.read import _DEPTH_KEYS, _OUTPUT_KEYS, _RUNTIME_KEYS
 
     sensor_keys = {"name", "source", "background", "gate"} | {k for kind in SOURCE_KINDS.values() for k in kind.keys}
     sensor = st.fixed_dictionaries({"source": st.one_of(st.sampled_from(sorted(SOURCE_KINDS)), _toml_values())},

@@ -1,0 +1,166 @@
+"""The source-kind registry: each kind's keys, gate preset, opener and one-line description."""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from ..errors import SceneError, SourceError
+from ..gate import GateOptions
+from .model import _DEVICE, Clock, Key, SensorSpec, _fps
+
+
+# -- source kinds ---------------------------------------------------------------------------
+@dataclass(frozen=True)
+class SourceKind:
+    """One kind of frame source: its own keys (beyond name, source, background, gate), its
+    gate preset, how to open it and one line saying what it is."""
+
+    name: str
+    keys: dict[str, Key]
+    gate_preset: Callable[[], GateOptions]
+    opener: Callable[[SensorSpec, Clock], Any]
+    describe: Callable[[SensorSpec], str]
+    live: bool = True
+
+
+def _open_camera(s: SensorSpec, clock: Clock):
+    from ..sources import CameraSource
+
+    return CameraSource(s.device, fps=s.fps or 60.0, name=s.name, clock=clock)
+
+
+_udev_state: dict[str, Any] = {}
+
+
+def udev_watcher():
+    """The process's one UdevWatcher (pyudev + libudev), or None when hot-plug events cannot
+    be had here (no pyudev, no libudev, no netlink socket); logged once, then cached."""
+    if "watcher" not in _udev_state:
+        try:
+            from tactile_force.firmware_bridge.hotplug import UdevWatcher
+
+            _udev_state["watcher"] = UdevWatcher()
+        except (ImportError, SourceError) as exc:
+            _udev_state["watcher"] = None
+            logging.getLogger(__name__).warning(
+                "USB hot-plug unavailable (%s): DIGITs are opened without it (an unplugged DIGIT is "
+                "retried by its own reconnect loop, not followed by udev events)", exc)
+    return _udev_state["watcher"]
+
+
+def _open_digit(s: SensorSpec, clock: Clock):
+    """A DIGIT by serial (or index): the serial is resolved to its /dev/videoN by the
+    firmware_bridge discovery; SourceError naming the serial and listing attached DIGITs.
+
+    With ``hotplug`` (default) and pyudev / libudev available, the DIGIT is a
+    :class:`~tactile_force.firmware_bridge.hotplug.HotplugSource`: on unplug its sensor is
+    dropped while the other is served, and it comes back on the udev event of its replug.
+    Without them (or when udev does not list the DIGIT) it is a plain DigitSource."""
+    from tactile_force.firmware_bridge.digit import DigitOptions, DigitSource  # USB code, only now
+
+    options = DigitOptions(sensor=s.serial if s.serial is not None else 0, fps=int(s.fps or 60))
+    try:
+        watcher = udev_watcher() if s.hotplug else None
+        if watcher is not None:
+            from tactile_force.firmware_bridge.hotplug import digit_hotplug_source
+            from tactile_force.firmware_bridge.usb_ids import DeviceKind
+
+            serial = options.sensor
+            seen = [d for d in watcher.present.values() if d.kind is DeviceKind.DIGIT]
+            if (isinstance(serial, int) and serial < len(seen)) or any(d.serial == serial for d in seen):
+                return digit_hotplug_source(options, watcher, name=s.name)
+            logging.getLogger(__name__).warning(
+                "sensor '%s': udev lists no DIGIT %s; opening it by the sysfs lookup, without hot-plug", s.name, serial)
+        return DigitSource(options)  # udev does not list it: the sysfs lookup (and its message)
+    except SourceError as exc:
+        raise SourceError(f"sensor '{s.name}' (digit {s.serial}): {exc}") from None
+
+
+def _open_gelsight_mini(s: SensorSpec, clock: Clock):
+    from tactile_force.firmware_bridge import gelsight  # USB sensor code, imported only now
+
+    try:
+        return gelsight.GelSightMiniSource(gelsight.GelSightMiniOptions(sensor=s.device, fps=s.fps or 25.0),
+                                           name=s.name, clock=clock)
+    except SourceError as exc:
+        raise SourceError(f"sensor '{s.name}' (gelsight_mini {s.device}): {exc}") from None
+
+
+def _open_replay(s: SensorSpec, clock: Clock):
+    from ..sources import ReplayFolderSource
+
+    assert s.path is not None  # required key of the kind
+    return ReplayFolderSource(s.path, fps=s.fps, name=s.name, clock=clock)
+
+
+def _open_video(s: SensorSpec, clock: Clock):
+    from ..sources import VideoFileSource
+
+    assert s.path is not None  # required key of the kind
+    return VideoFileSource(s.path, fps=s.fps, name=s.name, clock=clock)
+
+
+def _open_virtual(s: SensorSpec, clock: Clock):
+    try:
+        from ..synthetic import VirtualDigitSource
+    except ImportError as exc:
+        raise SceneError(f"sensor '{s.name}': source 'virtual' needs tactile_force.edge.synthetic.VirtualDigitSource, "
+                         f"which this installation lacks ({exc})") from None
+    return VirtualDigitSource(seed=s.seed, n_grasps=s.n_grasps, fps=s.fps or 60.0)
+
+
+def _paced(s: SensorSpec) -> str:
+    return f"paced at {s.fps:g} fps" if s.fps else "as fast as read"
+
+
+#: The one table of source kinds. Keys here are per kind; every sensor also has
+#: name, source, background and gate.
+SOURCE_KINDS: dict[str, SourceKind] = {
+    "camera": SourceKind(
+        "camera", {"device": _DEVICE, "fps": _fps(60.0)}, GateOptions, _open_camera,
+        lambda s: f"camera {s.device} via OpenCV V4L2 at {s.fps:g} fps, newest frame only"),
+    "digit": SourceKind(
+        "digit",
+        {"serial": Key((str, int), None, "a DIGIT serial such as 'D20001', or an index among attached DIGITs",
+                       lambda v: not isinstance(v, int) or v >= 0, required=True),
+         "fps": Key((int,), 60, "60 or 30 (QVGA frame rates of a DIGIT)", lambda v: v in (30, 60)),
+         "hotplug": Key((bool,), True, "true or false (follow unplug / replug through udev events)")},
+        GateOptions, _open_digit,
+        lambda s: f"DIGIT {s.serial} (found by serial via USB discovery) at {s.fps:g} fps"
+                  + (", hot-plug through udev events when pyudev is available" if s.hotplug else "")),
+    "gelsight_mini": SourceKind(
+        "gelsight_mini",
+        {"device": Key((int, str), 0, "a GelSight Mini serial, an index or a /dev/videoN path",
+                       lambda v: not isinstance(v, int) or v >= 0),
+         "fps": _fps(25.0)},
+        GateOptions.gelsight_mini, _open_gelsight_mini,
+        lambda s: f"GelSight Mini {s.device} via OpenCV V4L2, cropped 1/7 per side, 320x240 portrait, "
+                  "newest frame only"),
+    "replay": SourceKind(
+        "replay", {"path": Key((str,), None, "a replay folder (images/N.png [+ forces/force_N.txt])",
+                               required=True, path=True), "fps": _fps(None)},
+        GateOptions, _open_replay, lambda s: f"replay {s.path} ({_paced(s)})", live=False),
+    "video": SourceKind(
+        "video", {"path": Key((str,), None, "a video file", required=True, path=True), "fps": _fps(None)},
+        GateOptions, _open_video, lambda s: f"video {s.path} ({_paced(s)})", live=False),
+    "virtual": SourceKind(
+        "virtual",
+        {"seed": Key((int,), 0, "an integer"),
+         "n_grasps": Key((int,), 3, "an integer >= 1 (grasps the virtual DIGIT plays)", lambda v: v >= 1),
+         "fps": _fps(60.0)},
+        GateOptions, _open_virtual,
+        lambda s: f"virtual DIGIT (seed {s.seed}, {s.n_grasps} grasps, {s.fps:g} fps)", live=False),
+}
+SOURCES = tuple(SOURCE_KINDS)
+_COMMON_SENSOR_KEYS = {"name", "source", "background", "gate"}
+
+
+# -- building -----------------------------------------------------------------------------
+def open_source(s: SensorSpec, clock: Clock | None = None):
+    """Open the FrameSource a sensor spec names (device libraries only for that device)."""
+    import time
+
+    return s.kind.opener(s, clock or time.monotonic_ns)
