@@ -411,36 +411,10 @@ class ContactGate:
             r.reduced = self._small
             return r
 
-        np.copyto(self._thumb_f, thumb, casting="unsafe")
+        self._fit_thumb(thumb)
         y = self._y
-        self._fit(final=o.trust)
-        # Model of the frame = background x gain + offset per channel (uint8), then the max
-        # over B, G, R of |frame - model| > threshold <=> not all channels within [0, t].
-        cv2.transform(self._bg, self._M, dst=self._model_f)
-        cv2.convertScaleAbs(self._model_f, dst=self._model)
-        cv2.absdiff(work, self._model, dst=self._ad)
-        cv2.inRange(self._ad, self._zero, self._thr, dst=self._mask)
-        cv2.bitwise_not(self._mask, dst=self._mask)
-
-        area_small = 0
-        saturation_seen = False
-        deformation = 0.0
-        if cv2.countNonZero(self._mask):
-            if self._kernel is not None:
-                cv2.morphologyEx(self._mask, cv2.MORPH_OPEN, self._kernel, dst=self._mask)
-            # Keep blobs big enough to be contact, filled (a ball's flat top looks like background).
-            contours, _ = cv2.findContours(self._mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
-            self._mask.fill(0)
-            keep = [c for c in contours if cv2.contourArea(c) >= self._min_blob]
-            if keep:
-                if o.convex_hull:
-                    keep = [cv2.convexHull(c) for c in keep]
-                cv2.drawContours(self._mask, keep, -1, 255, thickness=cv2.FILLED)
-                area_small = cv2.countNonZero(self._mask)
-                limit = o.saturation_area_frac * self._work_area
-                if area_small >= limit:  # else the strong area cannot be
-                    saturation_seen = self._strong_area_reaches(limit)
-                deformation = max(cv2.mean(self._ad, mask=self._mask)[:3])
+        self._changed(work)
+        area_small, saturation_seen, deformation = self._blobs()
 
         s = int(o.downscale)
         k = s if self._exact else 1
@@ -488,6 +462,45 @@ class ContactGate:
         r.gain = tuple(self._gain.tolist())
         r.offset = tuple(self._offset.tolist())
         return r
+
+    # -- stages of update (separate so benchmarks/one_downscale.py can time each) --------
+    def _fit_thumb(self, thumb: np.ndarray) -> None:
+        """The photometric fit (gain/offset) of the frame's thumbnail to the background's."""
+        np.copyto(self._thumb_f, thumb, casting="unsafe")
+        self._fit(final=self.options.trust)
+
+    def _changed(self, work: np.ndarray) -> None:
+        """The changed-pixel mask into ``_mask`` and |frame - model| into ``_ad``. Model of the
+        frame = background x gain + offset per channel (uint8), then the max over B, G, R of
+        |frame - model| > threshold <=> not all channels within [0, t]."""
+        assert self._bg is not None
+        cv2.transform(self._bg, self._M, dst=self._model_f)
+        cv2.convertScaleAbs(self._model_f, dst=self._model)
+        cv2.absdiff(work, self._model, dst=self._ad)
+        cv2.inRange(self._ad, self._zero, self._thr, dst=self._mask)
+        cv2.bitwise_not(self._mask, dst=self._mask)
+
+    def _blobs(self) -> tuple[int, bool, float]:
+        """Contact blobs of the changed mask, filled, into ``_mask``: (area in working
+        pixels, gel saturation seen, deformation in grey levels)."""
+        if not cv2.countNonZero(self._mask):
+            return 0, False, 0.0
+        o = self.options
+        if self._kernel is not None:
+            cv2.morphologyEx(self._mask, cv2.MORPH_OPEN, self._kernel, dst=self._mask)
+        # Keep blobs big enough to be contact, filled (a ball's flat top looks like background).
+        contours, _ = cv2.findContours(self._mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+        self._mask.fill(0)
+        keep = [c for c in contours if cv2.contourArea(c) >= self._min_blob]
+        if not keep:
+            return 0, False, 0.0
+        if o.convex_hull:
+            keep = [cv2.convexHull(c) for c in keep]
+        cv2.drawContours(self._mask, keep, -1, 255, thickness=cv2.FILLED)
+        area_small = cv2.countNonZero(self._mask)
+        limit = o.saturation_area_frac * self._work_area
+        saturation_seen = self._strong_area_reaches(limit) if area_small >= limit else False  # else it cannot be
+        return area_small, saturation_seen, max(cv2.mean(self._ad, mask=self._mask)[:3])
 
     def _strong_area_reaches(self, limit: float) -> bool:
         """True when the pixels with a channel of ``_ad`` above ``saturation_threshold`` cover
