@@ -42,7 +42,7 @@ def depth_problems(scene) -> list[str]:
     """Why the depth stage of a depth-bundle scene could not be built (mapping missing,
     paper mode with a LUT, bad options), one message each; [] for RGB-only bundles."""
     from .bundle import load_bundle
-    from .errors import BundleError
+    from .errors import BundleError, SceneError
     from .runtime import build_depth_stage
 
     out = []
@@ -55,8 +55,10 @@ def depth_problems(scene) -> list[str]:
             continue
         try:
             build_depth_stage(scene.depth, bundle.manifest)
+        except SceneError as exc:  # names the key: depth.mapping, depth
+            out.append(f"{scene.origin}: {exc}")
         except Exception as exc:  # noqa: BLE001 - any reason the stage cannot be built is a problem to show
-            out.append(f"{scene.origin} [depth]: {exc}")
+            out.append(f"{scene.origin}: depth: {exc}")
         break
     return out
 
@@ -250,9 +252,8 @@ def _run_scene(args: argparse.Namespace):
                      force=getattr(args, "force", False), kind=OutputKind.FILE)
     scene = scene_from_flags(args.source, bundle=args.bundle or "default", background=args.background,
                              outputs=args.out, ros2=args.ros2, name=args.name, fps=args.fps,
-                             mcap_frames=getattr(args, "mcap_frames", False))
-    if getattr(args, "depth_mapping", None) is not None:
-        scene.depth["mapping"] = str(Path(args.depth_mapping).expanduser().absolute())
+                             mcap_frames=getattr(args, "mcap_frames", False),
+                             depth_mapping=getattr(args, "depth_mapping", None))
     if scene.sensors[0].kind.live:
         scene.outputs[0].live = True
     check_scene(scene)
@@ -281,7 +282,7 @@ def _check_depth_mapping(scene) -> None:
     from .bundle import load_bundle
     from .errors import BundleError
 
-    if "mapping" in scene.depth:
+    if scene.depth.mapping is not None:
         return
     for b in scene.bundles:
         try:

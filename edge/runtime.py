@@ -43,7 +43,7 @@ import weakref
 from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any, Protocol, cast
+from typing import TYPE_CHECKING, Any, Protocol, cast
 
 import numpy as np
 
@@ -54,6 +54,9 @@ from .gate import ContactGate, GateResult
 from .interval import ForceInterval, usable_interval
 from .manifest import Manifest
 from .reading import MAX_VALID_FORCE_N, MIN_VALID_FORCE_N, Flags, ForceReading, StageLatency
+
+if TYPE_CHECKING:  # the depth code is imported only for depth bundles
+    from .depth import DepthOptions, DepthStage
 
 _log = logging.getLogger(__name__)
 
@@ -222,28 +225,64 @@ def _detach(model: object, owner: bool) -> bool:
 ASSETS_DIR = Path(__file__).resolve().parent / "assets"
 
 
-def depth_options_for(options: dict | None = None, manifest: Manifest | None = None) -> dict:
-    """DepthOptions fields for a depth bundle: the scene's ``[depth]`` table, else what the
-    bundle's manifest recorded at training time (``manifest.depth``). A mapping named
-    ``package:FILE`` is a file shipped in tactile_force/edge/assets (e.g. the virtual
-    DIGIT's calibration that the reference depth models were trained with)."""
+def _record_options(record: object) -> dict[str, Any]:
+    """The DepthOptions values a depth record sets (None = not set): its fields by name;
+    a manifest's ``reduction`` (a FrameReduction, factor k > 1: depth made at the network
+    resolution) becomes DepthOptions ``downscale`` = k and ``reduction`` = its method."""
+    import dataclasses
+
+    out: dict[str, Any] = {}
+    for f in dataclasses.fields(record):  # type: ignore[arg-type]
+        value = getattr(record, f.name)
+        if value is None:
+            continue
+        if f.name == "reduction" and hasattr(value, "factor"):
+            if value.factor > 1:  # depth at the network resolution (the grid the model reads)
+                out["downscale"] = value.factor
+                out["reduction"] = value.method.value
+            continue
+        out[f.name] = value
+    return out
+
+
+def depth_options_for(settings: object | None = None, manifest: Manifest | None = None) -> DepthOptions:
+    """The depth stage's typed options for a depth bundle, merged in this one place: each
+    :class:`~tactile_force.edge.depth.DepthOptions` field from the scene's ``[depth]`` table
+    (``settings``: a :class:`~tactile_force.edge.scene.DepthSettings`, or any dataclass with
+    DepthOptions field names, e.g. a DepthOptions), else from what the bundle's manifest
+    recorded at training time (``manifest.depth``, a
+    :class:`~tactile_force.edge.manifest.DepthRecord`), else the DepthOptions default.
+
+    Generic over the fields (``dataclasses.fields``): a field a record shares by name with
+    DepthOptions flows through without an edit here; None means "not set"; record fields
+    DepthOptions does not have (``mapping_sha256``, ``mask``) are not options. A mapping
+    named ``package:FILE`` is a file shipped in tactile_force/edge/assets (e.g. the virtual
+    DIGIT's calibration that the reference depth models were trained with).
+
+    Raises
+    ------
+    SceneError
+        No mapping anywhere (``depth.mapping``), or a value DepthOptions refuses (``depth``).
+    """
+    import dataclasses
+
+    from .depth import DepthOptions  # noqa: PLC0415 - lazy on purpose
     from .errors import SceneError
 
-    options = dict(options or {})
-    recorded = manifest.depth if manifest is not None else None
-    if recorded is not None:
-        for key in ("mapping", "mode", "levels_per_px", "paper_scale"):
-            value = getattr(recorded, key)
-            if key not in options and value is not None:
-                options[key] = value
-        if recorded.reduction.factor > 1:  # depth at the network resolution (the grid the model reads)
-            options.setdefault("downscale", recorded.reduction.factor)
-            options.setdefault("reduction", recorded.reduction.method.value)
-    if "mapping" not in options:
-        raise SceneError("[depth] 'mapping' is required for depth bundles: the colour->normal .npz "
-                         "(the paper MLP or a 'tactile-force calibrate-depth' result)")
-    options["mapping"] = resolve_package_path(str(options["mapping"]))
-    return options
+    names = {f.name for f in dataclasses.fields(DepthOptions)}
+    values: dict[str, Any] = {}
+    for record in (manifest.depth if manifest is not None else None, settings):  # the scene's table wins
+        if record is not None:
+            values.update({k: v for k, v in _record_options(record).items() if k in names})
+    if "mapping" not in values:
+        raise SceneError("depth.mapping: missing; a depth bundle needs the colour->normal .npz "
+                         "(the paper MLP or a 'tactile-force calibrate-depth' result) in the scene's [depth] "
+                         "table or the bundle manifest")
+    values["mapping"] = resolve_package_path(str(values["mapping"]))
+    try:
+        return DepthOptions(**values)
+    except (TypeError, ValueError) as exc:
+        raise SceneError(f"depth: {exc}") from None
 
 
 def resolve_package_path(path: str) -> str:
@@ -253,17 +292,17 @@ def resolve_package_path(path: str) -> str:
     return path
 
 
-def build_depth_stage(options: dict | None = None, manifest=None):
-    """The depth stage for D/Dmod/RGBmod+D bundles (imported only for those); options and
+def build_depth_stage(settings: object | None = None, manifest: Manifest | None = None) -> DepthStage:
+    """The depth stage for D/Dmod/RGBmod+D bundles (imported only for those); settings and
     manifest as in :func:`depth_options_for`."""
-    from .depth import DepthOptions, DepthStage  # noqa: PLC0415 - lazy on purpose
+    from .depth import DepthStage  # noqa: PLC0415 - lazy on purpose
     from .errors import SceneError
 
-    options = depth_options_for(options, manifest)
+    options = depth_options_for(settings, manifest)
     try:
-        return DepthStage(DepthOptions(**options))
-    except (TypeError, ValueError) as exc:
-        raise SceneError(f"[depth]: {exc}") from None
+        return DepthStage(options)
+    except (TypeError, ValueError) as exc:  # MappingError: the mapping file is unusable
+        raise SceneError(f"depth: {exc}") from None
 
 
 def plan_stages(sensors: Iterable[str], needs_depth: bool, backend: str = "cpu") -> list[str]:

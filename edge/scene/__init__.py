@@ -58,19 +58,50 @@ from .model import (
     FILE_OUTPUTS,
     OUTPUT_KINDS,
     PACKAGE_DIR,
+    PACKAGE_PREFIXES,
+    Backend,
     Clock,
-    Key,
+    DepthMode,
+    DepthSettings,
+    OutputKind,
     OutputSpec,
+    RuntimeSettings,
     Scene,
+    SceneFile,
+    SensorKeys,
     SensorSpec,
     default_bundle_path,
+    ros2_topic_ok,
     shipped_bundles,
 )
 
 if TYPE_CHECKING:
-    from .build import BuiltScene, LearningWatch, build_scene, load_model, open_outputs
-    from .describe import bundle_problems, describe_scene, save_scene, scene_to_toml
-    from .kinds import SOURCE_KINDS, SOURCES, SourceKind, open_source, udev_watcher
+    from .build import (
+        BuiltScene,
+        LearningWatch,
+        build_scene,
+        load_model,
+        open_outputs,
+    )
+    from .describe import (
+        bundle_problems,
+        describe_scene,
+        save_scene,
+        scene_to_toml,
+    )
+    from .kinds import (
+        SOURCE_KINDS,
+        SOURCES,
+        CameraKeys,
+        DigitKeys,
+        GelSightMiniKeys,
+        ReplayKeys,
+        SourceKind,
+        VideoKeys,
+        VirtualKeys,
+        open_source,
+        udev_watcher,
+    )
     from .read import (
         check_scene,
         load_scene,
@@ -82,11 +113,18 @@ if TYPE_CHECKING:
         source_table,
     )
 
-#: name -> submodule, for the names imported on first use
+#: name -> submodule, for the names imported on first use (the build code imports the
+#: runtime; a scene is read and described without it)
 _LAZY = {
+    "CameraKeys": "kinds",
+    "DigitKeys": "kinds",
+    "GelSightMiniKeys": "kinds",
+    "ReplayKeys": "kinds",
     "SOURCES": "kinds",
     "SOURCE_KINDS": "kinds",
     "SourceKind": "kinds",
+    "VideoKeys": "kinds",
+    "VirtualKeys": "kinds",
     "open_source": "kinds",
     "udev_watcher": "kinds",
     "check_scene": "read",
@@ -110,20 +148,33 @@ _LAZY = {
 
 __all__ = [
     "BACKENDS",
+    "Backend",
     "BuiltScene",
+    "CameraKeys",
     "Clock",
     "DEPTH_MODES",
+    "DepthMode",
+    "DepthSettings",
+    "DigitKeys",
     "FILE_OUTPUTS",
-    "Key",
+    "GelSightMiniKeys",
     "LearningWatch",
     "OUTPUT_KINDS",
+    "OutputKind",
     "OutputSpec",
     "PACKAGE_DIR",
+    "PACKAGE_PREFIXES",
+    "ReplayKeys",
+    "RuntimeSettings",
     "SOURCES",
     "SOURCE_KINDS",
     "Scene",
+    "SceneFile",
+    "SensorKeys",
     "SensorSpec",
     "SourceKind",
+    "VideoKeys",
+    "VirtualKeys",
     "build_scene",
     "bundle_problems",
     "check_scene",
@@ -136,6 +187,7 @@ __all__ = [
     "output_problem",
     "output_table",
     "parse_scene",
+    "ros2_topic_ok",
     "save_scene",
     "scene_from_flags",
     "scene_problems",

@@ -40,12 +40,12 @@ def scene_to_toml(scene: Scene) -> str:
         if v is not None:
             rt[k] = v
     lines += [f"{k} = {_toml_value(v)}" for k, v in rt.items()]
-    if scene.depth:
-        lines += ["", "[depth]"] + [f"{k} = {_toml_value(v)}" for k, v in scene.depth.items()]
+    if depth := scene.depth.given():
+        lines += ["", "[depth]"] + [f"{k} = {_toml_value(v)}" for k, v in depth.items()]
     for s in scene.sensors:
         kind = s.kind
         lines += ["", "[[sensor]]", f"name = {_toml_value(s.name)}", f"source = {_toml_value(s.source)}"]
-        for k in kind.keys:
+        for k in kind.key_names:
             v = getattr(s, k)
             if v is not None:
                 lines.append(f"{k} = {_toml_value(int(v) if k == 'fps' and s.source == 'digit' else v)}")
@@ -127,8 +127,8 @@ def describe_scene(scene: Scene) -> list[str]:
         lines.append(f"  gate:{s.name:<8} threshold {s.gate.threshold:g}, on/off area {s.gate.on_area_frac:g}/"
                      f"{s.gate.off_area_frac:g}, downscale x{s.gate.downscale}, {bg}")
         if needs_depth:
-            mapping = scene.depth.get("mapping", "from the bundle manifest, else MISSING: set [depth] mapping")
-            mode = scene.depth.get("mode", "exact")
+            mapping = scene.depth.mapping or "from the bundle manifest, else MISSING: set [depth] mapping"
+            mode = scene.depth.mode or "exact"
             ref = ", zero-depth reference = the gate's background" if mode == "paper" else ""
             lines.append(f"  depth:{s.name:<7} DepthStage {mode} (RGB -> normals -> gradients -> Poisson -> masked "
                          f"depth; mapping {mapping}{ref})")

@@ -1,15 +1,21 @@
-"""The source-kind registry: each kind's keys, gate preset, opener and one-line description."""
+"""The source-kind registry: each kind's keys, gate preset, opener and one-line description.
+
+A kind's keys are a dataclass (a :class:`~.model.SensorKeys` subclass) read by the typed
+reader; adding a kind means adding its keys class and one :data:`SOURCE_KINDS` entry."""
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 from collections.abc import Callable
-from dataclasses import dataclass
-from typing import Any
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
 
 from ..errors import SceneError, SourceError
 from ..gate import GateOptions
-from .model import _DEVICE, Clock, Key, SensorSpec, _fps
+from ..typed_json import check
+from .model import Clock, SensorKeys, SensorSpec
 
 
 # -- source kinds ---------------------------------------------------------------------------
@@ -19,11 +25,62 @@ class SourceKind:
     gate preset, how to open it and one line saying what it is."""
 
     name: str
-    keys: dict[str, Key]
+    keys: type[SensorKeys]
     gate_preset: Callable[[], GateOptions]
     opener: Callable[[SensorSpec, Clock], Any]
     describe: Callable[[SensorSpec], str]
     live: bool = True
+
+    @property
+    def key_names(self) -> list[str]:
+        """The kind's own keys (beyond those of every sensor), in declaration order."""
+        common = {f.name for f in dataclasses.fields(SensorKeys)}
+        return [f.name for f in dataclasses.fields(self.keys) if f.name not in common]
+
+
+_FPS = check(gt=0)
+_DEVICE = check(ge=0, expected="a camera index or a /dev/videoN path")
+
+
+@dataclass(kw_only=True)
+class CameraKeys(SensorKeys):
+    device: int | str = field(default=0, metadata=_DEVICE)
+    fps: float = field(default=60.0, metadata=_FPS)
+
+
+@dataclass(kw_only=True)
+class DigitKeys(SensorKeys):
+    serial: str | int = field(metadata=check(
+        ge=0, expected="a DIGIT serial such as 'D20001', or an index among attached DIGITs"))
+    fps: Literal[60, 30] = field(default=60, metadata=check(expected="60 or 30 (QVGA frame rates of a DIGIT)"))
+    hotplug: bool = field(default=True, metadata=check(
+        expected="true or false (follow unplug / replug through udev events)"))
+
+
+@dataclass(kw_only=True)
+class GelSightMiniKeys(SensorKeys):
+    device: int | str = field(default=0, metadata=check(
+        ge=0, expected="a GelSight Mini serial, an index or a /dev/videoN path"))
+    fps: float = field(default=25.0, metadata=_FPS)
+
+
+@dataclass(kw_only=True)
+class ReplayKeys(SensorKeys):
+    path: Path = field(metadata=check(expected="a replay folder (images/N.png [+ forces/force_N.txt])"))
+    fps: float | None = field(default=None, metadata=_FPS)
+
+
+@dataclass(kw_only=True)
+class VideoKeys(SensorKeys):
+    path: Path = field(metadata=check(expected="a video file"))
+    fps: float | None = field(default=None, metadata=_FPS)
+
+
+@dataclass(kw_only=True)
+class VirtualKeys(SensorKeys):
+    seed: int = 0
+    n_grasps: int = field(default=3, metadata=check(ge=1, expected="an integer >= 1 (grasps the virtual DIGIT plays)"))
+    fps: float = field(default=60.0, metadata=_FPS)
 
 
 def _open_camera(s: SensorSpec, clock: Clock):
@@ -120,42 +177,25 @@ def _paced(s: SensorSpec) -> str:
 #: name, source, background and gate.
 SOURCE_KINDS: dict[str, SourceKind] = {
     "camera": SourceKind(
-        "camera", {"device": _DEVICE, "fps": _fps(60.0)}, GateOptions, _open_camera,
+        "camera", CameraKeys, GateOptions, _open_camera,
         lambda s: f"camera {s.device} via OpenCV V4L2 at {s.fps:g} fps, newest frame only"),
     "digit": SourceKind(
-        "digit",
-        {"serial": Key((str, int), None, "a DIGIT serial such as 'D20001', or an index among attached DIGITs",
-                       lambda v: not isinstance(v, int) or v >= 0, required=True),
-         "fps": Key((int,), 60, "60 or 30 (QVGA frame rates of a DIGIT)", lambda v: v in (30, 60)),
-         "hotplug": Key((bool,), True, "true or false (follow unplug / replug through udev events)")},
-        GateOptions, _open_digit,
+        "digit", DigitKeys, GateOptions, _open_digit,
         lambda s: f"DIGIT {s.serial} (found by serial via USB discovery) at {s.fps:g} fps"
                   + (", hot-plug through udev events when pyudev is available" if s.hotplug else "")),
     "gelsight_mini": SourceKind(
-        "gelsight_mini",
-        {"device": Key((int, str), 0, "a GelSight Mini serial, an index or a /dev/videoN path",
-                       lambda v: not isinstance(v, int) or v >= 0),
-         "fps": _fps(25.0)},
-        GateOptions.gelsight_mini, _open_gelsight_mini,
+        "gelsight_mini", GelSightMiniKeys, GateOptions.gelsight_mini, _open_gelsight_mini,
         lambda s: f"GelSight Mini {s.device} via OpenCV V4L2, cropped 1/7 per side, 320x240 portrait, "
                   "newest frame only"),
     "replay": SourceKind(
-        "replay", {"path": Key((str,), None, "a replay folder (images/N.png [+ forces/force_N.txt])",
-                               required=True, path=True), "fps": _fps(None)},
-        GateOptions, _open_replay, lambda s: f"replay {s.path} ({_paced(s)})", live=False),
+        "replay", ReplayKeys, GateOptions, _open_replay, lambda s: f"replay {s.path} ({_paced(s)})", live=False),
     "video": SourceKind(
-        "video", {"path": Key((str,), None, "a video file", required=True, path=True), "fps": _fps(None)},
-        GateOptions, _open_video, lambda s: f"video {s.path} ({_paced(s)})", live=False),
+        "video", VideoKeys, GateOptions, _open_video, lambda s: f"video {s.path} ({_paced(s)})", live=False),
     "virtual": SourceKind(
-        "virtual",
-        {"seed": Key((int,), 0, "an integer"),
-         "n_grasps": Key((int,), 3, "an integer >= 1 (grasps the virtual DIGIT plays)", lambda v: v >= 1),
-         "fps": _fps(60.0)},
-        GateOptions, _open_virtual,
+        "virtual", VirtualKeys, GateOptions, _open_virtual,
         lambda s: f"virtual DIGIT (seed {s.seed}, {s.n_grasps} grasps, {s.fps:g} fps)", live=False),
 }
 SOURCES = tuple(SOURCE_KINDS)
-_COMMON_SENSOR_KEYS = {"name", "source", "background", "gate"}
 
 
 # -- building -----------------------------------------------------------------------------

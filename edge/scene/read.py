@@ -1,9 +1,13 @@
-"""Reading a scene: a TOML file or command-line flags, validated; the paths it names checked."""
+"""Reading a scene: a TOML file or command-line flags, through the package's one typed
+reader (:mod:`tactile_force.edge.typed_json`), then the paths it names checked.
+
+Every error is a :class:`~tactile_force.edge.errors.SceneError` naming the file (or
+``command line``) and the dotted key, e.g.
+``scene.toml: sensor[0].fps: expected a number > 0, got 'fast'``.
+"""
 
 from __future__ import annotations
 
-import dataclasses
-import math
 import os
 import sys
 import tempfile
@@ -17,240 +21,103 @@ else:  # Python 3.10: the same parser from PyPI (a core dependency there)
 
 from ..errors import SceneError
 from ..gate import GateOptions
-from ..runtime import resolve_package_path
-from .kinds import _COMMON_SENSOR_KEYS, SOURCE_KINDS, SOURCES
+from ..typed_json import TypedJsonError, check, from_json, read_value
+from .kinds import SOURCE_KINDS, SOURCES
 from .model import (
-    BACKENDS,
-    DEPTH_MODES,
-    FILE_OUTPUTS,
-    OUTPUT_KINDS,
     PACKAGE_DIR,
-    Key,
-    OutputSpec,
+    PACKAGE_PREFIXES,
     Scene,
+    SceneFile,
     SensorSpec,
-    _finite_pos,
     default_bundle_path,
 )
 
-
-def _err(where: str, msg: str) -> SceneError:
-    return SceneError(f"{where}: {msg}")
-
-
-def _table(value: Any, where: str, what: str) -> dict:
-    if not isinstance(value, dict):
-        raise _err(where, f"expected a table ({what}), got {value!r}")
-    return value
-
-
-def _check_keys(table: dict, allowed: set[str] | dict, where: str) -> None:
-    for k in table:
-        if k not in allowed:
-            raise _err(where, f"unknown key '{k}'; expected one of {sorted(allowed)}")
-
-
-def _value(table: dict, name: str, key: Key, where: str) -> Any:
-    """The validated value of ``name`` in ``table`` (or the key's default)."""
-    if name not in table:
-        if key.required:
-            raise _err(where, f"'{name}' is required; expected {key.expected}")
-        return key.default
-    v = table[name]
-    if isinstance(v, bool) and bool not in key.types:
-        raise _err(where, f"'{name}' = {v!r}; expected {key.expected}")
-    if not isinstance(v, key.types):
-        raise _err(where, f"'{name}' = {v!r}; expected {key.expected}")
-    if isinstance(v, float) and not math.isfinite(v) and key.check is not None:
-        raise _err(where, f"'{name}' = {v!r}; expected {key.expected}")
-    if key.check is not None and not key.check(v):
-        raise _err(where, f"'{name}' = {v!r}; expected {key.expected}")
-    if isinstance(v, str) and not v and key.path:
-        raise _err(where, f"'{name}' is empty; expected {key.expected}")
-    return v
+_TABLE = "a table"
+_SOURCE = check(choices=SOURCES)["typed_json"]
 
 
 def _expand(value: str) -> Path:
     return Path(os.path.expandvars(os.path.expanduser(value)))
 
 
-def _in_path(base: Path, value: str) -> Path:
-    """An input path: relative to the scene file's folder (``base``)."""
-    p = _expand(value)
-    return p if p.is_absolute() else (base / p)
-
-
 def _out_path(value: str) -> Path:
     """An output path: relative to the working directory, never the scene or package folder."""
     return _expand(value).absolute()
 
-_RUNTIME_KEYS: dict[str, Key] = {
-    "backend": Key((str,), "cpu", f"one of {BACKENDS}", lambda v: v in BACKENDS),
-    "fallback": Key((str,), None, '"cpu" (or leave it out)', lambda v: v == "cpu"),
-    "deadline_ms": Key((int, float), 16.7, "a finite number of milliseconds > 0", _finite_pos),
-    "threads": Key((int,), 1, "an integer >= 1", lambda v: v >= 1),
-    "max_frames": Key((int,), 0, "an integer >= 0 (0 = until the sources end)", lambda v: v >= 0),
-    "report_stale": Key((bool,), True, "true or false"),
-    "oak_archive": Key((str,), None, "the NN Archive (.tar.xz) of the bundle for the OAK", path=True),
-    "oak_device": Key((str,), None, "an OAK device id"),
-}
-_DEPTH_KEYS: dict[str, Key] = {
-    "mapping": Key((str,), None, "the colour->normal .npz (a path, or package:FILE for a file in edge/assets)",
-                   path=True),
-    "mode": Key((str,), "exact", f"one of {DEPTH_MODES}", lambda v: v in DEPTH_MODES),
-    "levels_per_px": Key((int, float), None, "a finite number > 0", _finite_pos),
-    "paper_scale": Key((int, float), None, "a finite number > 0", _finite_pos),
-    "gel_width_m": Key((int, float), None, "a finite gel width in metres > 0", _finite_pos),
-    "gel_height_m": Key((int, float), None, "a finite gel height in metres > 0", _finite_pos),
-    "saturated_fraction": Key((int, float), None, "a number in [0, 1]", lambda v: 0 <= v <= 1),
-    "solver_dtype": Key((str,), None, '"float32" or "float64"', lambda v: v in ("float32", "float64")),
-}
-_OUTPUT_KEYS = {"kind", "path", "live", "fsync", "topic", "frames", "mask"}
 
-
-def _gate_options(table: dict, base: GateOptions, where: str) -> GateOptions:
-    """``base`` with the keys of ``table`` replaced; each checked against the type of the
-    GateOptions field (int, finite float, bool) and then by GateOptions.validate."""
-    defaults = {f.name: f.default for f in dataclasses.fields(GateOptions)}
-    _check_keys(table, set(defaults), where)
-    for k, v in table.items():
-        want = type(defaults[k])
-        if want is bool:
-            ok, expected = isinstance(v, bool), "true or false"
-        elif want is int:
-            ok, expected = isinstance(v, int) and not isinstance(v, bool), "an integer"
-        else:
-            ok = isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-            expected = "a finite number"
-        if not ok:
-            raise _err(where, f"'{k}' = {v!r}; expected {expected}")
-    opts = dataclasses.replace(base, **table)
+def _gate(table: dict[str, Any], base: GateOptions, key: str) -> GateOptions:
+    """``base`` with the GateOptions fields of ``table`` replaced (typed reader: keys and
+    types), then checked by GateOptions.validate; TypedJsonError naming ``key``."""
+    opts = from_json(GateOptions, table, key, defaults=base, table=_TABLE)
     try:
         opts.validate()
     except ValueError as exc:
-        raise _err(where, str(exc)) from None
+        raise TypedJsonError(f"{key}: {exc}") from None
     return opts
 
 
-def _bundles(rt: dict, base: Path, where: str) -> list[Path]:
-    bundle = rt.get("bundle", "default")
+def _sensor(raw: Any, i: int, gate_table: dict[str, Any], base: Path) -> SensorSpec:
+    """One [[sensor]] table: its source kind first, then the kind's keys (typed reader)."""
+    key = f"sensor[{i}]"
+    if not isinstance(raw, dict):
+        raise TypedJsonError(f"{key}: expected {_TABLE}, got {raw!r}"[:200])
+    if "source" not in raw:
+        raise TypedJsonError(f"{key}.source: missing; expected one of {', '.join(map(repr, SOURCES))}")
+    kind = SOURCE_KINDS[read_value(str, raw["source"], f"{key}.source", _SOURCE)]
+    keys = from_json(kind.keys, raw, key, base=base, table=_TABLE)
+    preset = _gate(gate_table, kind.gate_preset(), "gate")
+    values = {k: getattr(keys, k) for k in kind.key_names}
+    if values.get("fps") is not None:
+        values["fps"] = float(values["fps"])
+    return SensorSpec(name=keys.name or f"sensor{i}", source=kind.name, background=keys.background,
+                      gate=_gate(keys.gate, preset, f"{key}.gate"), **values)
+
+
+def _bundles(bundle: str | list[str], base: Path) -> list[Path]:
     items = bundle if isinstance(bundle, list) else [bundle]
-    if not items or not all(isinstance(b, str) and b for b in items):
-        raise _err(where, f"'bundle' = {bundle!r}; expected a path, \"default\", or a list of paths (ladder)")
-    return [default_bundle_path() if b == "default" else _in_path(base, b) for b in items]
-
-
-def _depth(data: dict, base: Path, where: str) -> dict[str, Any]:
-    table = _table(data.get("depth", {}), f"{where} [depth]", "DepthOptions fields")
-    _check_keys(table, _DEPTH_KEYS, f"{where} [depth]")
-    out: dict[str, Any] = {}
-    for k, key in _DEPTH_KEYS.items():
-        v = _value(table, k, key, f"{where} [depth]")
-        if k in table:
-            out[k] = float(v) if isinstance(v, int) and float in key.types else v
-    if "mapping" in out:
-        m = str(out["mapping"])
-        out["mapping"] = resolve_package_path(m) if m.startswith("package:") else str(_in_path(base, m))
-    return out
-
-
-def _sensor(t: Any, i: int, gate_table: dict, base: Path, where: str) -> SensorSpec:
-    ws = f"{where} [[sensor]] #{i + 1}"
-    t = _table(t, ws, "name, source and the keys of its kind")
-    src = t.get("source")
-    if not isinstance(src, str) or src not in SOURCE_KINDS:
-        raise _err(ws, f"'source' = {src!r}; expected one of {SOURCES}")
-    kind = SOURCE_KINDS[src]
-    _check_keys(t, _COMMON_SENSOR_KEYS | set(kind.keys), ws)
-    name = _value(t, "name", Key((str,), f"sensor{i}", "a non-empty name", lambda v: bool(v)), ws)
-    values: dict[str, Any] = {}
-    for k, key in kind.keys.items():
-        if key.required and k not in t:
-            raise _err(ws, f"source '{src}' needs '{k}' ({key.expected})")
-        v = _value(t, k, key, ws)
-        if v is not None and key.path:
-            v = _in_path(base, v)
-        elif k == "fps" and v is not None:
-            v = float(v)
-        values[k] = v
-    bg = _value(t, "background", Key((str,), None, "a no-contact image file or folder", path=True), ws)
-    per_sensor = _value(t, "gate", Key((dict,), {}, "a table of GateOptions fields"), ws)
-    preset = _gate_options(gate_table, kind.gate_preset(), f"{where} [gate]")
-    gate = _gate_options(per_sensor, preset, f"{ws} gate")
-    return SensorSpec(name=name, source=src, background=_in_path(base, bg) if bg else None, gate=gate, **values)
-
-
-def _output(t: Any, i: int, where: str) -> OutputSpec:
-    wo = f"{where} [[output]] #{i + 1}"
-    t = _table(t, wo, "kind and its keys")
-    _check_keys(t, _OUTPUT_KEYS, wo)
-    kind = _value(t, "kind", Key((str,), None, f"one of {OUTPUT_KINDS}", lambda v: v in OUTPUT_KINDS,
-                                 required=True), wo)
-    opath = _value(t, "path", Key((str,), None, "a file path (relative to the working directory)",
-                                  lambda v: bool(v)), wo)
-    if kind in FILE_OUTPUTS and opath is None:
-        raise _err(wo, f"output '{kind}' needs 'path' (a file, relative to the working directory)")
-    if kind not in FILE_OUTPUTS and opath is not None:
-        raise _err(wo, f"output '{kind}' writes no file; remove 'path'")
-    topic = _value(t, "topic", Key((str,), None, "a ROS 2 topic name such as '/tactile/force'",
-                                   lambda v: bool(v) and " " not in v), wo)
-    if kind == "ros2" and topic is None:
-        raise _err(wo, "output 'ros2' needs 'topic' (e.g. '/tactile/force')")
-    if topic is not None:
-        from ..outputs.ros2_names import ros_topic  # no DDS dependency
-
-        try:
-            topic = ros_topic(topic, "topic")
-        except SceneError as exc:
-            raise _err(wo, str(exc)) from None
-    images = {k: _value(t, k, Key((bool,), False, f"true or false (log each frame's {what})"), wo)
-              for k, what in (("frames", "image"), ("mask", "contact mask"))}
-    for k, v in images.items():
-        if v and kind != "mcap":
-            raise _err(wo, f"'{k}' is for kind = \"mcap\" only; output '{kind}' writes readings")
-    return OutputSpec(kind, _out_path(opath) if opath else None,
-                      _value(t, "live", Key((bool,), False, "true or false"), wo),
-                      _value(t, "fsync", Key((bool,), False, "true or false"), wo), topic, **images)
+    return [default_bundle_path() if b == "default"
+            else read_value(Path, b, "runtime.bundle" + (f"[{i}]" if isinstance(bundle, list) else ""), base=base)
+            for i, b in enumerate(items)]
 
 
 def parse_scene(data: dict, path: Path | None, base: Path | None = None) -> Scene:
-    """Validate a TOML dict (types, ranges, finite numbers); SceneError names the key.
+    """Validate a parsed scene (types, ranges, finite numbers, unknown keys) with the typed
+    reader; SceneError names the file and the dotted key.
 
-    path: the scene file (None for a command-line scene); base: the folder input paths are
-    relative to (default: the scene file's folder, else the working directory).
+    Parameters
+    ----------
+    data
+        The parsed TOML document (or the same shape built from command-line flags).
+    path
+        The scene file (None for a command-line scene).
+    base
+        The folder input paths are relative to (default: the scene file's folder, else the
+        working directory). Output paths are relative to the working directory.
+
+    Returns
+    -------
+    The :class:`Scene`, paths absolute.
     """
     where = str(path) if path is not None else "command line"
     base = base or (path.parent if path is not None else Path.cwd())
-    _table(data, where, "a scene")
-    _check_keys(data, {"runtime", "gate", "depth", "sensor", "output"}, where)
-    w = f"{where} [runtime]"
-    rt = _table(data.get("runtime", {}), w, "runtime settings")
-    _check_keys(rt, set(_RUNTIME_KEYS) | {"bundle"}, w)
-    r = {k: _value(rt, k, key, w) for k, key in _RUNTIME_KEYS.items()}
-    if r["backend"] == "oak" and r["oak_archive"] is None and r["fallback"] != "cpu":
-        raise _err(w, "backend 'oak' needs 'oak_archive' (the bundle's NN Archive .tar.xz), or fallback = \"cpu\"")
-    gate_table = _table(data.get("gate", {}), f"{where} [gate]", "GateOptions fields")
-    _gate_options(gate_table, GateOptions(), f"{where} [gate]")  # keys and types, once
-
-    raw_sensors = data.get("sensor", [])
-    if not isinstance(raw_sensors, list):
-        raise _err(where, f"'sensor' = {raw_sensors!r}; expected [[sensor]] tables (one or two)")
-    if not raw_sensors:
-        raise _err(where, "no [[sensor]] tables; expected one or two sensors")
-    if len(raw_sensors) > 2:
-        raise _err(where, f"{len(raw_sensors)} [[sensor]] tables; expected one or two (one per finger)")
-    sensors = [_sensor(t, i, gate_table, base, where) for i, t in enumerate(raw_sensors)]
-    if len({s.name for s in sensors}) != len(sensors):
-        raise _err(where, f"sensor names {[s.name for s in sensors]} must be unique")
-    raw_outputs = data.get("output", [])
-    if not isinstance(raw_outputs, list):
-        raise _err(where, f"'output' = {raw_outputs!r}; expected [[output]] tables")
-    outputs = [_output(t, i, where) for i, t in enumerate(raw_outputs)]
-    return Scene(path=path, sensors=sensors, bundles=_bundles(rt, base, w), backend=r["backend"],
-                 fallback=r["fallback"], deadline_ms=float(r["deadline_ms"]), threads=r["threads"],
-                 max_frames=r["max_frames"], report_stale=r["report_stale"],
-                 oak_archive=_in_path(base, r["oak_archive"]) if r["oak_archive"] else None,
-                 oak_device=r["oak_device"], depth=_depth(data, base, where), outputs=outputs)
+    try:
+        doc = from_json(SceneFile, data, base=base, prefixes=PACKAGE_PREFIXES, table=_TABLE)
+        _gate(doc.gate, GateOptions(), "gate")  # keys and types, once
+        if not doc.sensor:
+            raise TypedJsonError("sensor: no [[sensor]] tables; expected one or two sensors")
+        if len(doc.sensor) > 2:
+            raise TypedJsonError(f"sensor: {len(doc.sensor)} [[sensor]] tables; expected one or two (one per finger)")
+        sensors = [_sensor(t, i, doc.gate, base) for i, t in enumerate(doc.sensor)]
+        if len({s.name for s in sensors}) != len(sensors):
+            raise TypedJsonError(f"sensor: names {[s.name for s in sensors]} must be unique")
+        rt = doc.runtime
+        bundles = _bundles(rt.bundle, base)
+    except TypedJsonError as exc:
+        raise SceneError(f"{where}: {exc}") from None
+    return Scene(path=path, sensors=sensors, bundles=bundles, backend=rt.backend, fallback=rt.fallback,
+                 deadline_ms=rt.deadline_ms, threads=rt.threads, max_frames=rt.max_frames,
+                 report_stale=rt.report_stale, oak_archive=rt.oak_archive, oak_device=rt.oak_device,
+                 depth=doc.depth, outputs=doc.output)
 
 
 # -- paths -----------------------------------------------------------------------------------
@@ -305,30 +172,31 @@ def scene_problems(scene: Scene) -> list[str]:
     the file ('' when all is well). Cheap: reads no bundle, opens no device."""
     where = scene.origin
     out: list[str] = []
-    for b in scene.bundles:
+    for i, b in enumerate(scene.bundles):
+        key = "runtime.bundle" + (f"[{i}]" if len(scene.bundles) > 1 else "")
         if (p := _readable(b, "folder")) or (p := _readable(b / "model.json", "file")):
-            out.append(f"{where} [runtime] bundle: {p} (expected a bundle folder with model.json)")
+            out.append(f"{where}: {key}: {p} (expected a bundle folder with model.json)")
     if (scene.backend == "oak" and scene.oak_archive is not None and scene.fallback != "cpu"
             and (p := _readable(scene.oak_archive, "file"))):
-            out.append(f"{where} [runtime] oak_archive: {p} (or set fallback = \"cpu\" to run on the CPU without it)")
-    if "mapping" in scene.depth and (p := _readable(Path(scene.depth["mapping"]), "file")):
-        out.append(f"{where} [depth] mapping: {p}")
+            out.append(f"{where}: runtime.oak_archive: {p} (or set fallback = \"cpu\" to run on the CPU without it)")
+    if scene.depth.mapping is not None and (p := _readable(scene.depth.mapping, "file")):
+        out.append(f"{where}: depth.mapping: {p}")
     for i, s in enumerate(scene.sensors):
-        ws = f"{where} [[sensor]] #{i + 1} ({s.name})"
+        ws = f"{where}: sensor[{i}] ({s.name})"
         if s.path is not None:
             want = "folder" if s.source == "replay" else "file"
             if p := _readable(s.path, want):
-                out.append(f"{ws} path: {p}")
+                out.append(f"{ws}.path: {p}")
         if s.background is not None and (p := _readable(s.background, "file or folder")):
-            out.append(f"{ws} background: {p}")
+            out.append(f"{ws}.background: {p}")
     paths = [o.path for o in scene.outputs if o.path is not None]
     for i, o in enumerate(scene.outputs):
         if o.path is None:
             continue
         if paths.count(o.path) > 1:
-            out.append(f"{where} [[output]] #{i + 1} path: {o.path} is used by more than one output")
+            out.append(f"{where}: output[{i}].path: {o.path} is used by more than one output")
         elif p := output_problem(o.path):
-            out.append(f"{where} [[output]] #{i + 1} path: {p}")
+            out.append(f"{where}: output[{i}].path: {p}")
     return out
 
 
@@ -390,9 +258,12 @@ def output_table(out: str) -> dict[str, Any]:
 
 def scene_from_flags(source: str, bundle: str = "default", background: str | None = None,
                      outputs: list[str] | None = None, ros2: str | None = None, name: str = "sensor",
-                     fps: float | None = None, live_status: bool = False, mcap_frames: bool = False) -> Scene:
-    """The Scene a TOML file with these settings would give (validated the same way).
-    mcap_frames: the .mcap outputs also log each frame and its contact mask."""
+                     fps: float | None = None, live_status: bool = False, mcap_frames: bool = False,
+                     depth_mapping: str | None = None) -> Scene:
+    """The Scene a TOML file with these settings would give, read by the same typed reader
+    (errors name ``command line`` and the key). mcap_frames: the .mcap outputs also log each
+    frame and its contact mask; depth_mapping: the [depth] mapping (relative to the working
+    directory, or ``package:FILE``)."""
     sensor = {"name": name, **source_table(source)}
     if background is not None:
         sensor["background"] = str(_expand(background).absolute())
@@ -408,6 +279,9 @@ def scene_from_flags(source: str, bundle: str = "default", background: str | Non
     if ros2 is not None:
         outs.append({"kind": "ros2", "topic": ros2})
     outs.insert(0, {"kind": "stdout", "live": live_status})
-    data = {"runtime": {"bundle": bundle if bundle == "default" else str(_expand(bundle).absolute())},
-            "sensor": [sensor], "output": outs}
+    data: dict[str, Any] = {
+        "runtime": {"bundle": bundle if bundle == "default" else str(_expand(bundle).absolute())},
+        "sensor": [sensor], "output": outs}
+    if depth_mapping is not None:
+        data["depth"] = {"mapping": depth_mapping}
     return parse_scene(data, None, Path.cwd())

@@ -200,7 +200,7 @@ def test_readme_names_the_plot_the_demo_writes():
 
 
 def test_scene_from_flags_validates_like_a_file(tmp_path):
-    with pytest.raises(SceneError, match=r"command line \[\[sensor\]\] #1: 'fps' = 45; expected 60 or 30"):
+    with pytest.raises(SceneError, match=r"^command line: sensor\[0\]\.fps: expected 60 or 30 \(QVGA frame rates of a DIGIT\), got 45$"):
         scene_from_flags("digit:D20001", fps=45.0)
 
 

@@ -260,11 +260,12 @@ def test_corrupt_replay_frames_are_counted_not_passed(tmp_path, aurova_dir):
 
 def test_depth_bundle_runs_the_real_depth_stage_with_the_gate_mask(make_bundle, aurova_dir):
     from tactile_force.edge.runtime import build_depth_stage
+    from tactile_force.edge.scene import DepthSettings
 
     mapping = shared_data("aurova_digit_depth_mlp.npz")
     model = OnnxForceModel(make_bundle("mean_dmod", variant="dmod"))
     rt = ForceRuntime([Sensor("s", ReplayFolderSource(aurova_dir), _gate())], model,
-                      depth_factory=lambda: build_depth_stage({"mapping": str(mapping)}))
+                      depth_factory=lambda: build_depth_stage(DepthSettings(mapping=mapping)))
     assert rt.stages == ["source:s", "gate:s", "depth:s", "inference:cpu"]
     readings = []
     while not rt.finished:
@@ -281,6 +282,7 @@ def test_depth_bundle_runs_the_real_depth_stage_with_the_gate_mask(make_bundle, 
 def test_depth_bundle_without_mapping_is_a_clear_scene_error():
     from tactile_force.edge import SceneError
     from tactile_force.edge.runtime import build_depth_stage
+    from tactile_force.edge.scene import DepthSettings
 
-    with pytest.raises(SceneError, match="'mapping' is required"):
-        build_depth_stage({})
+    with pytest.raises(SceneError, match=r"depth\.mapping: missing; a depth bundle needs the colour->normal \.npz"):
+        build_depth_stage(DepthSettings())

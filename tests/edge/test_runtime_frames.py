@@ -125,7 +125,7 @@ def test_frames_and_mask_keys_are_for_mcap_only(tmp_path):
     with pytest.raises(SceneError, match=r"'frames' is for kind = \"mcap\" only"):
         parse_scene({"sensor": [{"source": "virtual"}], "output": [{"kind": "csv", "path": "x.csv", "frames": True}]},
                     tmp_path / "s.toml")
-    with pytest.raises(SceneError, match=r"'mask' = 1; expected true or false"):
+    with pytest.raises(SceneError, match=r"output\[0\]\.mask: expected true or false, got 1"):
         parse_scene({"sensor": [{"source": "virtual"}], "output": [{"kind": "mcap", "path": "x.mcap", "mask": 1}]},
                     tmp_path / "s.toml")
     with pytest.raises(SceneError, match="--mcap-frames: no --out FILE.mcap"):

@@ -49,13 +49,15 @@ def _scene(tmp_path: Path, bundle: Path, aurova: Path, extra: str = "", name: st
 
 
 @pytest.mark.parametrize("snippet, match", [
-    ('[runtime]\nbackend = "gpu"\n', r"\[runtime\]: 'backend' = 'gpu'; expected one of \('cpu', 'oak'\)"),
-    ('[runtime]\ndeadline = 5\n', r"unknown key 'deadline'; expected one of"),
-    ('[runtime]\nthreads = "two"\n[[sensor]]\nsource = "camera"\n', r"'threads' = 'two'; expected an integer >= 1"),
-    ('[[sensor]]\nsource = "usb"\n', r"\[\[sensor\]\] #1: 'source' = 'usb'; expected one of"),
-    ('[[sensor]]\nsource = "replay"\n', r"source 'replay' needs 'path'"),
-    ('[[sensor]]\nsource = "camera"\ngate = { blur = 4 }\n', r"gate: gate.blur=4: expected an odd integer"),
-    ('[[sensor]]\nsource = "camera"\n[[output]]\nkind = "csv"\n', r"output 'csv' needs 'path'"),
+    ('[runtime]\nbackend = "gpu"\n', r"runtime\.backend: expected one of 'cpu', 'oak', got 'gpu'"),
+    ('[runtime]\ndeadline = 5\n', r"runtime: unknown key 'deadline'; allowed keys: bundle, backend, "),
+    ('[runtime]\nthreads = "two"\n[[sensor]]\nsource = "camera"\n',
+     r"runtime\.threads: expected an integer >= 1, got 'two'"),
+    ('[[sensor]]\nsource = "usb"\n', r"sensor\[0\]\.source: expected one of 'camera', .*got 'usb'"),
+    ('[[sensor]]\nsource = "replay"\n', r"sensor\[0\]\.path: missing; expected a replay folder"),
+    ('[[sensor]]\nsource = "camera"\ngate = { blur = 4 }\n',
+     r"sensor\[0\]\.gate: gate.blur=4: expected an odd integer"),
+    ('[[sensor]]\nsource = "camera"\n[[output]]\nkind = "csv"\n', r"output\[0\]: output 'csv' needs 'path'"),
     ('[runtime\n', r"not valid TOML"),
     ('', r"no \[\[sensor\]\] tables"),
 ])

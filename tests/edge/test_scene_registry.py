@@ -3,7 +3,9 @@ mappings, paper depth mode's reference from the gate's background, and closing t
 
 from __future__ import annotations
 
+import dataclasses
 import textwrap
+import typing
 from pathlib import Path
 
 import cv2
@@ -15,25 +17,29 @@ from tactile_force.edge.reading import Flags
 from tactile_force.edge.runtime import ASSETS_DIR
 from tactile_force.edge.scene import (
     SOURCE_KINDS,
+    SensorKeys,
     build_scene,
     describe_scene,
     load_scene,
     open_source,
     parse_scene,
 )
+from tactile_force.edge.typed_json import field_check, read_value
 
 from tests.conftest import shared_data
 
 
 def test_every_source_kind_has_keys_preset_and_opener():
     assert set(SOURCE_KINDS) == {"camera", "digit", "gelsight_mini", "replay", "video", "virtual"}
+    hints = typing.get_type_hints
     for name, kind in SOURCE_KINDS.items():
         assert kind.name == name
         assert isinstance(kind.gate_preset(), GateOptions)
         assert callable(kind.opener) and callable(kind.describe)
-        for key in kind.keys.values():  # a default must pass its own check
-            if key.default is not None and key.check is not None:
-                assert key.check(key.default), (name, key)
+        assert issubclass(kind.keys, SensorKeys) and "fps" in kind.key_names
+        for f in dataclasses.fields(kind.keys):  # a default must pass its own field's check
+            if f.default is not dataclasses.MISSING and f.default is not None:
+                read_value(hints(kind.keys)[f.name], f.default, f"{name}.{f.name}", field_check(f))
 
 
 def test_gelsight_mini_gets_its_gate_preset_unless_the_scene_sets_gate(tmp_path):
@@ -48,11 +54,13 @@ def test_gelsight_mini_gets_its_gate_preset_unless_the_scene_sets_gate(tmp_path)
 
 
 def test_keys_of_another_kind_are_refused(tmp_path):
-    with pytest.raises(SceneError, match=r"#1: unknown key 'n_grasps'"):
+    with pytest.raises(SceneError, match=r"sensor\[0\]: unknown key 'n_grasps'; allowed keys: source, name, "
+                                         r"background, gate, device, fps$"):
         parse_scene({"sensor": [{"source": "camera", "n_grasps": 2}]}, tmp_path / "s.toml")
-    with pytest.raises(SceneError, match=r"source 'digit' needs 'serial'"):
+    with pytest.raises(SceneError, match=r"sensor\[0\]\.serial: missing; expected a DIGIT serial such as 'D20001'"):
         parse_scene({"sensor": [{"source": "digit"}]}, tmp_path / "s.toml")
-    with pytest.raises(SceneError, match=r"'fps' = 45; expected 60 or 30"):
+    with pytest.raises(SceneError, match=r"sensor\[0\]\.fps: expected 60 or 30 \(QVGA frame rates of a DIGIT\), "
+                                         r"got 45$"):
         parse_scene({"sensor": [{"source": "digit", "serial": "D20001", "fps": 45}]}, tmp_path / "s.toml")
 
 
@@ -103,8 +111,8 @@ def test_digit_kind_names_the_serial_and_lists_attached_ones(tmp_path, fake_digi
 def test_package_mapping_resolves_to_the_package_assets(tmp_path):
     data = {"depth": {"mapping": "package:virtual_digit_depth.npz"}, "sensor": [{"source": "camera"}]}
     scene = parse_scene(data, tmp_path / "sub" / "s.toml")
-    assert Path(scene.depth["mapping"]) == ASSETS_DIR / "virtual_digit_depth.npz"
-    assert Path(scene.depth["mapping"]).is_file()
+    assert scene.depth.mapping == ASSETS_DIR / "virtual_digit_depth.npz"
+    assert scene.depth.mapping.is_file()
 
 
 def _paper_scene(tmp_path: Path, bundle: Path, replay: Path, background: Path | None) -> Path:

@@ -6,6 +6,7 @@ traceback, a late failure or exit 0."""
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import textwrap
 from pathlib import Path
@@ -22,24 +23,31 @@ from tests.conftest import shared_data
 
 SENSOR = '[[sensor]]\nname = "left"\nsource = "camera"\n'
 
-#: (scene text, the words the error must hold: the key and what was expected)
+#: (scene text, the words the error must hold: the dotted key, what was expected, what was got)
 BAD_SCENES = {
     "gate threshold a string": ('[gate]\nthreshold = "high"\n' + SENSOR,
-                                r"\[gate\]: 'threshold' = 'high'; expected a finite number"),
+                                r"gate\.threshold: expected a number, got 'high'"),
     "gate background_frames a string": ('[gate]\nbackground_frames = "5"\n' + SENSOR,
-                                        r"\[gate\]: 'background_frames' = '5'; expected an integer"),
-    "runtime not a table": ("runtime = 5\n" + SENSOR, r"\[runtime\]: expected a table"),
-    "sensor a list of numbers": ("sensor = [1, 2]\n", r"\[\[sensor\]\] #1: expected a table"),
-    "fps inf": (SENSOR + "fps = inf\n", r"'fps' = inf; expected a finite frame rate > 0"),
-    "fps nan": (SENSOR + "fps = nan\n", r"'fps' = nan; expected a finite frame rate > 0"),
-    "n_grasps 0": ('[[sensor]]\nsource = "virtual"\nn_grasps = 0\n', r"'n_grasps' = 0; expected an integer >= 1"),
-    "deadline inf": ("[runtime]\ndeadline_ms = inf\n" + SENSOR, r"'deadline_ms' = inf; expected a finite number"),
-    "gate per sensor bool for float": (SENSOR + "gate = { threshold = true }\n", r"'threshold' = True"),
-    "output not a table": ("output = 3\n" + SENSOR, r"'output' = 3; expected \[\[output\]\] tables"),
-    "ros2 without topic": (SENSOR + '[[output]]\nkind = "ros2"\n', r"output 'ros2' needs 'topic'"),
-    "mcap without path": (SENSOR + '[[output]]\nkind = "mcap"\n', r"output 'mcap' needs 'path'"),
-    "source a list": ("[[sensor]]\nsource = [1]\n", r"'source' = \[1\]; expected one of"),
-    "source a table": ("[[sensor]]\nsource = { a = 1 }\n", r"'source' = \{'a': 1\}; expected one of"),
+                                        r"gate\.background_frames: expected an integer, got '5'"),
+    "runtime not a table": ("runtime = 5\n" + SENSOR, r"runtime: expected a table, got 5"),
+    "sensor a list of numbers": ("sensor = [1, 2]\n", r"sensor\[0\]: expected a table, got 1"),
+    "fps inf": (SENSOR + "fps = inf\n", r"sensor\[0\]\.fps: expected a finite number > 0, got inf"),
+    "fps nan": (SENSOR + "fps = nan\n", r"sensor\[0\]\.fps: expected a finite number > 0, got nan"),
+    "fps a word": (SENSOR + 'fps = "fast"\n', r"sensor\[0\]\.fps: expected a number > 0, got 'fast'"),
+    "n_grasps 0": ('[[sensor]]\nsource = "virtual"\nn_grasps = 0\n',
+                   r"sensor\[0\]\.n_grasps: expected an integer >= 1 \(grasps the virtual DIGIT plays\), got 0"),
+    "deadline inf": ("[runtime]\ndeadline_ms = inf\n" + SENSOR,
+                     r"runtime\.deadline_ms: expected a finite number > 0, got inf"),
+    "gate per sensor bool for float": (SENSOR + "gate = { threshold = true }\n",
+                                       r"sensor\[0\]\.gate\.threshold: expected a number, got True"),
+    "output not a table": ("output = 3\n" + SENSOR, r"output: expected \[\[output\]\] tables, got 3"),
+    "ros2 without topic": (SENSOR + '[[output]]\nkind = "ros2"\n', r"output\[0\]: output 'ros2' needs 'topic'"),
+    "mcap without path": (SENSOR + '[[output]]\nkind = "mcap"\n', r"output\[0\]: output 'mcap' needs 'path'"),
+    "source a list": ("[[sensor]]\nsource = [1]\n", r"sensor\[0\]\.source: expected one of 'camera', .*got \[1\]"),
+    "source a table": ("[[sensor]]\nsource = { a = 1 }\n",
+                       r"sensor\[0\]\.source: expected one of 'camera', .*got \{'a': 1\}"),
+    "unknown top-level table": ("[sensors]\n" + SENSOR,
+                                r": unknown key 'sensors'; allowed keys: runtime, gate, depth, sensor, output"),
 }
 
 
@@ -50,7 +58,7 @@ def test_bad_scene_values_are_named_with_key_and_file(tmp_path, case):
     p.write_text(text)
     with pytest.raises(SceneError, match=words) as info:
         load_scene(p)
-    assert str(p) in str(info.value)
+    assert str(info.value).startswith(f"{p}: ")  # one style: the file, then the dotted key
 
 
 @pytest.mark.parametrize("case", sorted(BAD_SCENES))
@@ -82,7 +90,7 @@ def _replay_scene(tmp_path: Path, bundle: Path, replay: Path, csv: str) -> Path:
 def test_csv_path_that_is_a_folder_fails_before_the_model_is_loaded(tmp_path, rgb_bundle, aurova_dir, monkeypatch):
     (tmp_path / "out").mkdir()
     p = _replay_scene(tmp_path, rgb_bundle, aurova_dir, str(tmp_path / "out"))
-    with pytest.raises(SceneError, match=r"\[\[output\]\] #1 path: .*out is a folder; expected a file path"):
+    with pytest.raises(SceneError, match=r"output\[0\]\.path: .*out is a folder; expected a file path"):
         load_scene(p)
     loaded = []
     import tactile_force.edge.inference as inference
@@ -95,7 +103,7 @@ def test_csv_path_that_is_a_folder_fails_before_the_model_is_loaded(tmp_path, rg
 @pytest.mark.skipif(not Path("/proc/self").exists(), reason="needs /proc (a file system nobody can create files in)")
 def test_unwritable_csv_path_fails_at_load(tmp_path, rgb_bundle, aurova_dir):
     p = _replay_scene(tmp_path, rgb_bundle, aurova_dir, "/proc/tactile_force_readings.csv")
-    with pytest.raises(SceneError, match=r"\[\[output\]\] #1 path: .*cannot create files in /proc"):
+    with pytest.raises(SceneError, match=r"output\[0\]\.path: .*cannot create files in /proc"):
         load_scene(p)
 
 
@@ -120,7 +128,7 @@ def test_scene_show_fails_on_a_scene_run_would_crash_on(tmp_path, make_bundle, a
     p = _replay_scene(tmp_path, make_bundle("show_rgbd", variant="rgbmod+d"), aurova_dir, str(tmp_path / "r.csv"))
     assert cli_main(["scene", "show", str(p)]) == 2
     err = capsys.readouterr().err
-    assert "[depth]" in err and "mapping" in err
+    assert f"{p}: depth.mapping: missing" in err
     assert cli_main(["run", "--scene", str(p)]) == 2
     assert "Traceback" not in capsys.readouterr().err
 
@@ -250,19 +258,21 @@ def _table_of(keys):
 def test_any_scene_table_parses_or_names_the_problem(tmp_path):
     from hypothesis import HealthCheck, given, settings
     from hypothesis import strategies as st
-    from tactile_force.edge.scene import SOURCE_KINDS, parse_scene
-    from tactile_force.edge.scene.read import _DEPTH_KEYS, _OUTPUT_KEYS, _RUNTIME_KEYS
+    from tactile_force.edge.scene import SOURCE_KINDS, DepthSettings, OutputSpec, RuntimeSettings, parse_scene
 
-    sensor_keys = {"name", "source", "background", "gate"} | {k for kind in SOURCE_KINDS.values() for k in kind.keys}
+    def names(cls):
+        return {f.name for f in dataclasses.fields(cls)}
+
+    sensor_keys = {k for kind in SOURCE_KINDS.values() for k in names(kind.keys)}
     sensor = st.fixed_dictionaries({"source": st.one_of(st.sampled_from(sorted(SOURCE_KINDS)), _toml_values())},
                                    optional={k: _toml_values() for k in sorted(sensor_keys - {"source"})})
     gate_keys = {"threshold", "background_frames", "blur", "downscale", "convex_hull", "refresh_rate"}
     scene = st.fixed_dictionaries({}, optional={
-        "runtime": st.one_of(_table_of(set(_RUNTIME_KEYS) | {"bundle"}), _toml_values()),
+        "runtime": st.one_of(_table_of(names(RuntimeSettings)), _toml_values()),
         "gate": st.one_of(_table_of(gate_keys), _toml_values()),
-        "depth": st.one_of(_table_of(set(_DEPTH_KEYS)), _toml_values()),
+        "depth": st.one_of(_table_of(names(DepthSettings)), _toml_values()),
         "sensor": st.one_of(st.lists(st.one_of(sensor, _table_of(sensor_keys)), max_size=3), _toml_values()),
-        "output": st.one_of(st.lists(_table_of(_OUTPUT_KEYS), max_size=3), _toml_values()),
+        "output": st.one_of(st.lists(_table_of(names(OutputSpec)), max_size=3), _toml_values()),
     })
 
     @settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -271,7 +281,7 @@ def test_any_scene_table_parses_or_names_the_problem(tmp_path):
         try:
             parse_scene(data, tmp_path / "scene.toml")
         except SceneError as exc:
-            assert str(tmp_path / "scene.toml") in str(exc)
+            assert str(exc).startswith(f"{tmp_path / 'scene.toml'}: ")
 
     check()
 
