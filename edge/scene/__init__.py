@@ -34,12 +34,15 @@ A ``digit`` sensor follows unplug / replug through udev events (pyudev) unless
 Input paths (bundles, replay folders, videos, backgrounds, depth mappings) are relative to
 the scene file; output paths are relative to the working directory (never the package
 folder). ``~`` and ``$VARS`` are expanded. Every key is checked for type, range and (paths)
-readability / writability by :func:`load_scene` before anything heavy is loaded; errors
-name the file and the key. No device library (depthai, pyusb, hidapi) and no depth code is
-imported unless the scene needs it.
+readability / writability by :func:`load_scene` before anything heavy is loaded, by the
+package's one typed reader (:mod:`tactile_force.edge.typed_json`); errors name the file and
+the dotted key, e.g. ``scene.toml: sensor[0].fps: expected a number > 0, got 'fast'``. No
+device library (depthai, pyusb, hidapi) and no depth code is imported unless the scene
+needs it.
 
-Each source kind is one entry of :data:`SOURCE_KINDS`: its keys (types, defaults, checks),
-its gate preset and its opener. Adding a kind means adding one entry.
+Each source kind is one entry of :data:`SOURCE_KINDS`: its keys (a dataclass: types,
+defaults, checks), its gate preset and its opener. Adding a kind means adding its keys
+class and one entry.
 
 The package, split by job: :mod:`.model` (what a scene is), :mod:`.read` (reading and
 checking it), :mod:`.kinds` (the source-kind registry and its openers), :mod:`.describe`
