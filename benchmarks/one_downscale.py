@@ -3,6 +3,7 @@ accuracy, the reductions compared, and the goals measured against the reference 
 
     python -m benchmarks.one_downscale make-default      # rebuild edge/models/default (graph surgery)
     python -m benchmarks.one_downscale accuracy          # RE of reference vs new default, per reduction
+    python -m benchmarks.one_downscale gate              # the contact gate's cost, stage by stage
     python -m benchmarks one-downscale --out docs/benchmarks   # the page (goals, before/after, 10-run check)
 
 The reference is today's (commit c1733e6) default graph, kept as a loadable format-2 bundle in
@@ -268,6 +269,94 @@ def stage_rows(run: dict) -> list[list[object]]:
     return rows
 
 
+def gate_rows(frames: int = 2000, warmup: int = 200) -> list[list[object]]:
+    """The contact gate stage by stage, one thread, frames in contact from memory:
+    [[stage, when it runs, p50 us, p99 us, p50 share of the whole gate]].
+
+    One gate runs ``update``'s stages one by one (its own methods, in update's order) and the
+    judging checks that run only on some frames (timed on every frame here, so each row says
+    what the check costs when it runs); a second gate runs the whole per-frame path the
+    runtime calls (reduce + exposure check + update) on another frame of the pool, both
+    interleaved frame by frame, each frame cold in the cache as a camera's would be.
+    """
+    from tactile_force.edge import ContactGate, load_bundle
+    from tactile_force.edge.data_stats import DataStatsCheck
+    from tactile_force.edge.frames import exposure_problem
+
+    from .frames import frame_pool
+    from .stats import percentiles
+
+    cv2.setNumThreads(1)
+    pool = frame_pool()
+    a, b = ContactGate(), ContactGate()
+    a.capture_background(pool.background)
+    b.capture_background(pool.background)
+    stats = DataStatsCheck(load_bundle(DEFAULT_DIR).manifest.data_stats, "default")
+
+    def motion_basis(f):
+        a._ref.refreshed()
+        return a._ref.motion()
+
+    every = "every frame"
+    stages = [
+        ("one downscale (edge/reduce.py, area-2x-steps)", every, lambda f: a.reduce(f)),
+        ("exposure check (all-dark / all-white / clipped)", every, lambda f: exposure_problem(a._small)),
+        ("blur + 20x15 thumbnail", every, lambda f: a._prepare(f)),
+        ("photometric fit (gain/offset, two residual passes)", every, lambda f: a._fit_thumb(a._thumb)),
+        ("changed-pixel mask", every, lambda f: a._changed(a._work)),
+        ("noise burst / blurred frame check", every + " (trust)", lambda f: a._noise(a._work)),
+        ("blobs: contours, fill, area, saturation, deformation", every + " with changed pixels", lambda f: a._blobs()),
+        ("uniform frame check", "global or photometric change", lambda f: cv2.meanStdDev(a._thumb_f)),
+        ("colour order (RGB) check", "global change, no contact tracked", lambda f: a._colour_swapped(a._y)),
+        ("gel/camera motion check", "onset of a change", lambda f: a._motion_explained(a._ref)),
+        ("motion basis derived again", "first onset after a background refresh", motion_basis),
+        ("occlusion (dark share) check", "onset with changed pixels", lambda f: a._dark_share(a._y, a._ref)),
+        ("mismatch border check", "background mismatch state", lambda f: a._borders_changed()),
+        ("data statistics check (runtime, bundle's data_stats)", "contact readings",
+         lambda f: stats.out_of_distribution(a._thumb)),
+    ]
+
+    def whole(f):
+        exposure_problem(b.reduce(f))
+        b.update(f)
+
+    n = warmup + frames
+    t = np.full((n, len(stages) + 1), np.nan)
+    clock = time.perf_counter_ns
+    n_every = sum(1 for st in stages if st[1].startswith(every))
+    # Pass 1: the every-frame stages and the whole path, interleaved; pass 2: the checks that
+    # run on some frames only, after the every-frame stages of the same frame (untimed), so
+    # their memory traffic does not colour the every-frame figures.
+    for rare in (False, True):
+        for i in range(n):
+            fa, fb = pool.rgb[i % len(pool.rgb)], pool.rgb[(i + len(pool.rgb) // 2) % len(pool.rgb)]
+            for j, (_, _, fn) in enumerate(stages):
+                if rare and j < n_every:
+                    fn(fa)
+                    continue
+                if not rare and j >= n_every:
+                    break
+                t0 = clock()
+                fn(fa)
+                t[i, j] = (clock() - t0) / 1e3
+            if not rare:
+                t0 = clock()
+                whole(fb)
+                t[i, -1] = (clock() - t0) / 1e3
+    t = t[warmup:]
+    total = percentiles(t[:, -1])
+    rows: list[list[object]] = []
+    for j, (label, when, _) in enumerate(stages):
+        p = percentiles(t[:, j])
+        rows.append([label, when, p.p50, p.p99, f"{100 * p.p50 / total.p50:.0f} %"])
+    every_frame = percentiles(t[:, :n_every].sum(1))
+    rows.append(["sum of the every-frame stages", every, every_frame.p50, every_frame.p99,
+                 f"{100 * every_frame.p50 / total.p50:.0f} %"])
+    rows.append(["whole gate path (reduce + exposure check + update)", "every frame (contact frames here)",
+                 total.p50, total.p99, "100 %"])
+    return rows
+
+
 def check_runs(runs: int = 10, frames: int = 1000) -> list[list[object]]:
     """The under-1 ms check (benchmarks/check.py: the best RGBmod bundle's total p99 through
     ForceRuntime, one thread, frames in contact) ``runs`` times back to back:
@@ -307,6 +396,7 @@ def page(argv: list[str], frames: int = 2000, check: int = 10, quick: bool = Fal
     from .stats import markdown_table
 
     run = interleaved(frames=frames, warmup=50 if quick else 200)
+    gate = gate_rows(300 if quick else 2000, 50 if quick else 200)
     red_rows = reduction_timings(200 if quick else 2000)
     acc = accuracy()
     graph = graph_rows(100 if quick else 400)
@@ -334,6 +424,11 @@ def page(argv: list[str], frames: int = 2000, check: int = 10, quick: bool = Fal
                             goal_rows(run)),
              "", "## Stages", "",
              markdown_table(["path", "stage", "p50 ms", "p99 ms", "p50 / reference p50", "frames"], stage_rows(run)),
+             "", "## The gate, stage by stage (one thread, us; `python -m benchmarks.one_downscale gate`)", "",
+             "Each stage is the gate's own method, timed on every frame (a check that runs only on some frames "
+             "shows what it costs when it runs); the last row is the whole path the runtime calls, timed on "
+             "another gate in the same loop. Frames in contact, cold in the cache.", "",
+             markdown_table(["stage", "runs on", "p50 us", "p99 us", "p50 / whole gate p50"], gate),
              "", "## How the frame is reduced (320x240x3 -> 80x60x3, one thread, interleaved)", "",
              markdown_table(["method", "p50 us", "p99 us", "max |diff| to the exact mean (levels)",
                              "share of pixels off the rounded mean"], red_rows),
@@ -354,7 +449,7 @@ def page(argv: list[str], frames: int = 2000, check: int = 10, quick: bool = Fal
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m benchmarks.one_downscale", description=__doc__.split("\n")[0])
-    ap.add_argument("what", choices=("make-default", "accuracy", "reductions", "goals"))
+    ap.add_argument("what", choices=("make-default", "accuracy", "reductions", "goals", "gate"))
     ap.add_argument("--frames", type=int, default=2000, help="goals: frames per path after warm-up")
     args = ap.parse_args(argv)
     if args.what == "goals":
@@ -364,6 +459,11 @@ def main(argv: list[str] | None = None) -> int:
         print(markdown_table(["goal", "limit", "before (issue)", "before (this run)", "after", "met"], goal_rows(run)))
         print(markdown_table(["path", "stage", "p50 ms", "p99 ms", "p50/ref", "n"], stage_rows(run)))
         print(run["machine"].line())
+    elif args.what == "gate":
+        from .stats import markdown_table
+
+        print(markdown_table(["stage", "runs on", "p50 us", "p99 us", "p50 / whole gate p50"],
+                             gate_rows(frames=args.frames)))
     elif args.what == "make-default":
         make_default()
     elif args.what == "accuracy":
