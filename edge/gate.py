@@ -252,6 +252,11 @@ class _Reference:
         self.rows, self.cols = thumb.shape[:2]
         self.x = thumb.reshape(-1, 3)  # a view: follows the refreshed background thumbnail
         self._motion: tuple[np.ndarray, np.ndarray] | None = None
+        # cell coordinates about the centre (they do not change with the background)
+        yy, xx = np.mgrid[: self.rows, : self.cols].astype(np.float32)
+        yy -= self.rows / 2.0
+        xx -= self.cols / 2.0
+        self._yy, self._xx = yy[..., None], xx[..., None]
 
     def refreshed(self) -> None:
         """The background thumbnail changed: the motion basis is made again when next needed."""
@@ -263,10 +268,7 @@ class _Reference:
             t = self.x.reshape(self.rows, self.cols, 3)
             gx = cv2.Sobel(t, cv2.CV_32F, 1, 0, ksize=3) / 8.0
             gy = cv2.Sobel(t, cv2.CV_32F, 0, 1, ksize=3) / 8.0
-            yy, xx = np.mgrid[: self.rows, : self.cols].astype(np.float32)
-            yy -= self.rows / 2.0
-            xx -= self.cols / 2.0
-            rot = (-yy[..., None] * gx + xx[..., None] * gy) / max(self.rows, self.cols)
+            rot = (-self._yy * gx + self._xx * gy) / max(self.rows, self.cols)
             g = np.stack([gx.ravel(), gy.ravel(), rot.ravel()], axis=1).astype(np.float64)
             self._motion = (np.linalg.pinv(g).astype(np.float32), (g.T @ g).astype(np.float32))
         return self._motion

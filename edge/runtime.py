@@ -787,7 +787,8 @@ class ForceRuntime:
 
     def _infer(self, pending: list[_Pending], out: list[ForceReading]) -> None:
         n = len(pending)
-        reduced = self._net is not None and all(p.net is not None for p in pending)
+        reduced = self._net is not None and (pending[0].net is not None if n == 1
+                                             else all(p.net is not None for p in pending))
         if n == 1:  # views, no copy: the model copies into its own bound input buffer
             p0 = pending[0]
             rgb = p0.net[None] if reduced and p0.net is not None else p0.frame[None]
