@@ -44,12 +44,17 @@ _DEVICE = check(ge=0, expected="a camera index or a /dev/videoN path")
 
 @dataclass(kw_only=True)
 class CameraKeys(SensorKeys):
+    """``camera``: device (index or /dev/videoN), fps (frames per second)."""
+
     device: int | str = field(default=0, metadata=_DEVICE)
     fps: float = field(default=60.0, metadata=_FPS)
 
 
 @dataclass(kw_only=True)
 class DigitKeys(SensorKeys):
+    """``digit``: serial (or an index among attached DIGITs), fps (60 or 30 per second),
+    hotplug (follow unplug / replug through udev events)."""
+
     serial: str | int = field(metadata=check(
         ge=0, expected="a DIGIT serial such as 'D20001', or an index among attached DIGITs"))
     fps: Literal[60, 30] = field(default=60, metadata=check(expected="60 or 30 (QVGA frame rates of a DIGIT)"))
@@ -59,6 +64,8 @@ class DigitKeys(SensorKeys):
 
 @dataclass(kw_only=True)
 class GelSightMiniKeys(SensorKeys):
+    """``gelsight_mini``: device (serial, index or /dev/videoN), fps (frames per second)."""
+
     device: int | str = field(default=0, metadata=check(
         ge=0, expected="a GelSight Mini serial, an index or a /dev/videoN path"))
     fps: float = field(default=25.0, metadata=_FPS)
@@ -66,18 +73,24 @@ class GelSightMiniKeys(SensorKeys):
 
 @dataclass(kw_only=True)
 class ReplayKeys(SensorKeys):
+    """``replay``: path (a replay folder, relative to the scene file), fps (None: as fast as read)."""
+
     path: Path = field(metadata=check(expected="a replay folder (images/N.png [+ forces/force_N.txt])"))
     fps: float | None = field(default=None, metadata=_FPS)
 
 
 @dataclass(kw_only=True)
 class VideoKeys(SensorKeys):
+    """``video``: path (a video file, relative to the scene file), fps (None: as fast as read)."""
+
     path: Path = field(metadata=check(expected="a video file"))
     fps: float | None = field(default=None, metadata=_FPS)
 
 
 @dataclass(kw_only=True)
 class VirtualKeys(SensorKeys):
+    """``virtual``: seed, n_grasps (grasps played, >= 1), fps (frames per second)."""
+
     seed: int = 0
     n_grasps: int = field(default=3, metadata=check(ge=1, expected="an integer >= 1 (grasps the virtual DIGIT plays)"))
     fps: float = field(default=60.0, metadata=_FPS)

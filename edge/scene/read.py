@@ -21,7 +21,7 @@ else:  # Python 3.10: the same parser from PyPI (a core dependency there)
 
 from ..errors import SceneError
 from ..gate import GateOptions
-from ..typed_json import TypedJsonError, check, from_json, read_value
+from ..typed_json import Check, TypedJsonError, from_json, read_value
 from .kinds import SOURCE_KINDS, SOURCES
 from .model import (
     PACKAGE_DIR,
@@ -33,7 +33,7 @@ from .model import (
 )
 
 _TABLE = "a table"
-_SOURCE = check(choices=SOURCES)["typed_json"]
+_SOURCE = Check(choices=SOURCES)
 
 
 def _expand(value: str) -> Path:
