@@ -28,14 +28,14 @@ import json
 import math
 from dataclasses import dataclass, field
 from pathlib import PurePosixPath, PureWindowsPath
-from typing import Any
+from typing import Any, Literal
 
 from .data_stats import DataStats
 from .errors import BundleError
 from .force_calibration import ForceCalibration
 from .frames import FRAME_COLS, FRAME_ROWS
 from .interval import ForceInterval
-from .typed_json import TypedJsonError, from_json, to_json
+from .typed_json import TypedJsonError, check, from_json, to_json
 
 FORMAT_VERSION = 3
 
@@ -210,9 +210,9 @@ class DepthRecord:
     """
 
     mapping: str
-    mode: str = "exact"  # DepthOptions.mode
-    levels_per_px: float | None = None
-    paper_scale: float | None = None
+    mode: Literal["exact", "paper"] = "exact"  # DepthOptions.mode
+    levels_per_px: float | None = field(default=None, metadata=check(gt=0))  # DepthOptions fields of the same name
+    paper_scale: float | None = field(default=None, metadata=check(gt=0))
     mapping_sha256: str = ""
     mask: str = ""
     #: The depth grid: the frame reduced by ``reduction`` (factor k: 320/k x 240/k), where the

@@ -101,3 +101,27 @@ def test_depth_mapping_from_flags_is_read_like_a_scene_key(tmp_path, monkeypatch
     assert scene.depth == DepthSettings(mapping=tmp_path / "calib" / "m.npz")  # relative to the working directory
     with pytest.raises(SceneError, match=r"^command line: depth\.mapping: is empty; expected the colour->normal"):
         scene_from_flags("virtual", depth_mapping="")
+
+
+@pytest.mark.parametrize("key, value, message", [
+    ("mode", "fast", r"depth\.mode: expected one of 'exact', 'paper', got 'fast'$"),
+    ("levels_per_px", -1, r"depth\.levels_per_px: expected a number > 0, got -1$"),
+    ("paper_scale", 0, r"depth\.paper_scale: expected a number > 0, got 0$"),
+])
+def test_the_manifest_depth_record_is_checked_when_read(key, value, message):
+    """The manifest's depth record is read by the same typed reader, so a bundle with a bad
+    depth option is refused at load, naming the key, not when the stage is built."""
+    import copy
+    import json
+
+    from tactile_force.edge.errors import BundleError
+    from tactile_force.edge.manifest import manifest_from_json
+    from tactile_force.edge.scene import shipped_bundles
+
+    if "d" not in shipped_bundles():
+        pytest.skip("no shipped depth bundle in this install")
+    raw = json.loads((shipped_bundles()["d"] / "model.json").read_text())
+    manifest_from_json(copy.deepcopy(raw), "model.json")  # as shipped: fine
+    raw["depth"][key] = value
+    with pytest.raises(BundleError, match="^model.json: " + message):
+        manifest_from_json(raw, "model.json")
