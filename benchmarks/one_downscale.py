@@ -310,7 +310,7 @@ def gate_rows(frames: int = 2000, warmup: int = 200) -> list[list[object]]:
         ("colour order (RGB) check", "global change, no contact tracked", lambda f: a._colour_swapped(a._y)),
         ("gel/camera motion check", "onset of a change", lambda f: a._motion_explained(a._ref)),
         ("motion basis derived again", "first onset after a background refresh", motion_basis),
-        ("occlusion (dark share) check", "onset with changed pixels", lambda f: a._dark_share(a._y, a._ref)),
+        ("occlusion (dark share) check", "onset with changed pixels", lambda f: a._dark_share(a._ref)),
         ("mismatch border check", "background mismatch state", lambda f: a._borders_changed()),
         ("data statistics check (runtime, bundle's data_stats)", "contact readings",
          lambda f: stats.out_of_distribution(a._thumb)),

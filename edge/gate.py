@@ -53,6 +53,7 @@ _log = logging.getLogger(__name__)
 THUMB_CELL_PX = 16
 
 _UINT8 = np.dtype(np.uint8)
+_ALL_SET = (255, 255, 255)
 
 
 @dataclass
@@ -252,6 +253,7 @@ class _Reference:
         self.rows, self.cols = thumb.shape[:2]
         self.x = thumb.reshape(-1, 3)  # a view: follows the refreshed background thumbnail
         self._motion: tuple[np.ndarray, np.ndarray] | None = None
+        self._dark: np.ndarray | None = None
         # cell coordinates about the centre (they do not change with the background)
         yy, xx = np.mgrid[: self.rows, : self.cols].astype(np.float32)
         yy -= self.rows / 2.0
@@ -259,8 +261,17 @@ class _Reference:
         self._yy, self._xx = yy[..., None], xx[..., None]
 
     def refreshed(self) -> None:
-        """The background thumbnail changed: the motion basis is made again when next needed."""
+        """The background thumbnail changed: the motion basis and the dark level are made
+        again when next needed."""
         self._motion = None
+        self._dark = None
+
+    def dark(self) -> np.ndarray:
+        """45 % of the background + 2 grey levels per cell and channel (rows x cols x 3,
+        float32): under it on every channel, a cell is dark."""
+        if self._dark is None:
+            self._dark = (0.45 * self.x + 2.0).reshape(self.rows, self.cols, 3)
+        return self._dark
 
     def motion(self) -> tuple[np.ndarray, np.ndarray]:
         """(pinv (3, 3N), G^T G (3, 3)) of the basis d(thumb)/d(shift x, shift y, rotation)."""
@@ -601,7 +612,7 @@ class ContactGate:
             if explained > o.motion_explained:
                 reason, kind = (f"the gel or camera moved: {100 * explained:.0f} % of the difference is a shift or "
                                 "rotation of the background", "motion")
-            elif onset and frac > 0 and self._dark_share(y, ref) > 0.04:
+            elif onset and frac > 0 and self._dark_share(ref) > 0.04:
                 reason, kind = ("part of the gel is covered or dark (occlusion, a cable or finger in view, "
                                 "a failed LED?)", "global")
             elif global_change and not was_contact:
@@ -629,11 +640,12 @@ class ContactGate:
             return invalid, self._mismatch
         return invalid, ""
 
-    @staticmethod
-    def _dark_share(y: np.ndarray, ref: _Reference) -> float:
+    def _dark_share(self, ref: _Reference) -> float:
         """Share of thumbnail cells where every channel fell below 45 % of the background's
         (a contact shifts colours; it does not black out the gel)."""
-        return float(np.mean((y < 0.45 * ref.x + 2.0).all(axis=1)))
+        cv2.compare(self._thumb_f, ref.dark(), cv2.CMP_LT, dst=self._tcmp)
+        cv2.inRange(self._tcmp, _ALL_SET, _ALL_SET, dst=self._tdark)
+        return cv2.countNonZero(self._tdark) / float(self._tdark.size)
 
     def _colour_swapped(self, y: np.ndarray) -> bool:
         """True when B and R swapped fit the background far better than the frame as it is."""
@@ -770,6 +782,8 @@ class ContactGate:
         self._tr = np.empty((th, tw, 3), np.float32)
         self._txy = np.empty((th, tw, 3), np.float32)
         self._inl = np.full((th, tw), 255, np.uint8)
+        self._tcmp = np.empty((th, tw, 3), np.uint8)  # the occlusion check's buffers
+        self._tdark = np.empty((th, tw), np.uint8)
         self._tol = np.full(3, float(o.fit_tolerance), np.float64)
         self._mx = np.empty((3, 1), np.float64)  # meanStdDev outputs, reused
         self._sx = np.empty((3, 1), np.float64)
