@@ -148,6 +148,7 @@ def fit_knots(raw: np.ndarray, truth: np.ndarray, method: str = "isotonic") -> t
         if len(xs) < 2:
             raise CalibrationRefused("the isotonic fit pooled every frame into one level: the model's estimate "
                                      "does not order these presses by force")
+    ys = [max(0.0, y) for y in ys]  # a force is >= 0 N (rounding can leave -1e-17); still non-decreasing
     # linear extension with the overall least-squares slope
     if ys[0] > 0:
         xs.insert(0, xs[0] - ys[0] / slope)

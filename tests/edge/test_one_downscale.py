@@ -91,6 +91,7 @@ def test_format2_bundle_still_loads_and_gives_the_same_forces(tmp_path):
     f_old = old.predict(frames)
     assert np.array_equal(f_old, old.predict_reduced(frames))  # a full-resolution graph: same path
     onnx = pytest.importorskip("onnx", reason="graph surgery needs the export extra")
+    pytest.importorskip("torch", reason="tactile_force.export needs the export extra (torch)")
     assert onnx
     from tactile_force.export.network_input import network_input_bundle
 
