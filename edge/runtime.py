@@ -48,9 +48,12 @@ from typing import TYPE_CHECKING, Any, Protocol, cast
 import numpy as np
 
 from .data_stats import DataStatsCheck
-from .errors import FrameError, ModelClosedError, OptionsError, SourceError
+from .errors import FrameError, ModelClosedError, OptionsError
 from .frames import FRAME_SHAPE, FrameSource, TimedFrame, check_frame, exposure_problem
 from .gate import ContactGate, GateResult
+from .grabbers import Grabbers as _Grabbers
+from .grabbers import Read as _Read
+from .grabbers import read_once as _read
 from .interval import ForceInterval, usable_interval
 from .manifest import Manifest
 from .reading import MAX_VALID_FORCE_N, MIN_VALID_FORCE_N, Flags, ForceReading, StageLatency
@@ -335,91 +338,6 @@ def shares_reduction(gate: ContactGate, model: object) -> bool:
     red = getattr(model, "reduction", None)
     return (callable(getattr(model, "predict_reduced", None)) and getattr(model, "rgb_shape", None) is not None
             and red is not None and red.factor > 1 and red == gate.reduction)
-
-
-@dataclass(slots=True)
-class _Read:
-    """One read() of a source: the frame (None at the end of the stream), or the SourceError
-    it raised; t0 / t1: clock before / after the call (ns)."""
-
-    tf: TimedFrame | None
-    error: SourceError | None
-    t0: int
-    t1: int
-
-
-def _read(source: FrameSource, clock: Callable[[], int]) -> _Read:
-    t0 = clock()
-    try:
-        tf = source.read()
-    except SourceError as exc:
-        return _Read(None, exc, t0, clock())
-    return _Read(tf, None, t0, clock())
-
-
-class _Grabbers:
-    """One reader thread per sensor, each holding at most one read ahead (a one-slot
-    hand-over: lossless for file sources; live cameras drop old frames themselves).
-    :meth:`take` waits until at least one live sensor's read is there and takes every one
-    that is; a source raising anything but SourceError re-raises in the loop's thread."""
-
-    def __init__(self, sensors: list[Sensor], clock: Callable[[], int]) -> None:
-        self._cond = threading.Condition()
-        self._slots: dict[str, _Read | None] = {s.name: None for s in sensors}
-        self._failure: BaseException | None = None
-        self._stop = False
-        self._threads = [threading.Thread(target=self._loop, args=(s, clock), name=f"read-{s.name}", daemon=True)
-                         for s in sensors]
-        for t in self._threads:
-            t.start()
-
-    def _loop(self, s: Sensor, clock: Callable[[], int]) -> None:
-        while True:
-            try:
-                r = _read(s.source, clock)
-            except BaseException as exc:  # noqa: BLE001 - handed to the loop's thread
-                with self._cond:
-                    self._failure = exc
-                    self._cond.notify_all()
-                return
-            with self._cond:
-                while self._slots[s.name] is not None and not self._stop:
-                    self._cond.wait()
-                if self._stop:
-                    return
-                self._slots[s.name] = r
-                self._cond.notify_all()
-            if r.tf is None:  # end of the stream or a source error: this sensor is done
-                return
-
-    def wait_all(self, live: list[Sensor], timeout_s: float) -> bool:
-        """Wait up to ``timeout_s`` until every live sensor's read is there; True if it is."""
-        with self._cond:
-            return self._cond.wait_for(lambda: self._failure is not None
-                                       or all(self._slots[s.name] is not None for s in live), timeout_s)
-
-    def take(self, live: list[Sensor]) -> list[tuple[Sensor, _Read]]:
-        """Every live sensor's waiting read (at least one), in sensor order."""
-        with self._cond:
-            self._cond.wait_for(lambda: self._failure is not None
-                                or any(self._slots[s.name] is not None for s in live))
-            if self._failure is not None:
-                raise self._failure
-            got = []
-            for s in live:
-                r = self._slots[s.name]
-                if r is not None:
-                    got.append((s, r))
-                    self._slots[s.name] = None
-            self._cond.notify_all()
-            return got
-
-    def stop(self, timeout_s: float = 1.0) -> None:
-        with self._cond:
-            self._stop = True
-            self._cond.notify_all()
-        for t in self._threads:
-            t.join(timeout_s)
 
 
 class ForceRuntime:
