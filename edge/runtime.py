@@ -47,7 +47,6 @@ from typing import TYPE_CHECKING, Any, Protocol, cast
 
 import numpy as np
 
-from .data_stats import DataStatsCheck
 from .errors import FrameError, ModelClosedError, OptionsError
 from .frames import FRAME_SHAPE, FrameSource, TimedFrame, check_frame, exposure_problem
 from .gate import ContactGate, GateResult
@@ -55,8 +54,9 @@ from .grabbers import Grabbers as _Grabbers
 from .grabbers import Read as _Read
 from .grabbers import read_once as _read
 from .interval import ForceInterval, usable_interval
+from .judging import EstimateJudge, gate_verdict
 from .manifest import Manifest
-from .reading import MAX_VALID_FORCE_N, MIN_VALID_FORCE_N, Flags, ForceReading, StageLatency
+from .reading import Flags, ForceReading, StageLatency
 
 if TYPE_CHECKING:  # the depth code is imported only for depth bundles
     from .depth import DepthOptions, DepthStage
@@ -418,6 +418,7 @@ class ForceRuntime:
         self._ref_thumb, self._ref_what, self._ref_min = reference_thumb(model)
         self._bg_checked: dict[str, np.ndarray] = {}  # per sensor: the given background image checked
         self._pressed: dict[str, str] = {}  # per sensor: why its given background looks pressed ("" = it does not)
+        self._judging = EstimateJudge(model)  # range, saturation, out_of_distribution (edge/judging.py)
         _attach(model)  # last: a runtime that failed to build does not count as a user
 
     # -- public ---------------------------------------------------------------------------
@@ -740,36 +741,15 @@ class ForceRuntime:
         self.stats.inferred += n
         for p, raw in zip(pending, forces):
             lat = StageLatency(p.source_ms, p.gate_ms, p.depth_ms, inf_ms)
-            flags, force, detail = self._judge(float(raw), p.gate, error)
-            if self._foreign and self._foreign.get(p.sensor.name):  # another sensor than the calibration's
-                flags |= Flags.OUT_OF_DISTRIBUTION
-                detail = f"{detail}; {self._foreign[p.sensor.name]}" if detail else self._foreign[p.sensor.name]
+            foreign = self._foreign.get(p.sensor.name, "") if self._foreign else ""
+            flags, force, detail = self._judging.estimate(float(raw), p.gate, error, foreign)
             r = self._reading(p.sensor, p.tf, flags, force, lat, detail, p.gate.area_px, float(raw))
             out.append(self._finish(r, p.start_ns))
 
     def _gate_verdict(self, s: Sensor, tf: TimedFrame, g: GateResult, lat: StageLatency) -> ForceReading:
-        """The reading for a frame the gate cannot judge (force NaN, the CNN not run):
-        ``invalid_input`` (RGB order, uniform, noise burst) or ``background_mismatch`` (the
-        detail says why and how the gate recovers; docs/runtime.md, "Flags")."""
-        if g.invalid:
-            return self._reading(s, tf, Flags.INVALID_INPUT, latency=lat, area=g.area_px,
-                                 detail=f"{s.name} frame {tf.index}: {g.invalid}")
-        wait = s.gate.options.relearn_frames
-        recover = (f"background re-learnt after {wait} stable frames without a contact-like blob, or as soon as a "
-                   "frame fits again" if wait else "call ContactGate.relearn() with the gripper open")
-        return self._reading(s, tf, Flags.BACKGROUND_MISMATCH, latency=lat, area=g.area_px,
-                             detail=f"{s.name}: background mismatch: {g.mismatch} ({recover})")
-
-    def _stats_check(self) -> DataStatsCheck:
-        """The check against the bundle's ``data_stats``, made on first use (one warning and
-        no check when the manifest has none)."""
-        chk = getattr(self, "_data_check", None)
-        if chk is None:
-            bundle = getattr(self.model, "bundle", None)
-            manifest = getattr(bundle, "manifest", None)
-            chk = DataStatsCheck(getattr(manifest, "data_stats", None), str(getattr(bundle, "name", "bundle")))
-            self._data_check = chk
-        return chk
+        """The reading for a frame the gate cannot judge (force NaN, the CNN not run; edge/judging.py)."""
+        flags, detail = gate_verdict(s.name, tf.index, g, s.gate.options.relearn_frames)
+        return self._reading(s, tf, flags, latency=lat, area=g.area_px, detail=detail)
 
     @property
     def interval(self) -> ForceInterval | None:
@@ -791,35 +771,6 @@ class ForceRuntime:
             r.force_low_n, r.force_high_n, r.interval = iv.no_contact_bounds()
         else:
             r.force_low_n, r.force_high_n, r.interval = iv.bounds(r.force_n, fl & _SATURATED != 0)
-
-    def _judge(self, raw: float, g: GateResult, error: str) -> tuple[Flags, float, str]:
-        """Flags and honestly clamped force for one estimate: range, saturation (also a
-        contact larger or deeper than the bundle's data covered) and out_of_distribution
-        (the frame's colours outside the bundle's data_stats; the force is kept)."""
-        if not math.isfinite(raw):
-            return Flags.INVALID_INPUT, math.nan, error or f"model returned {raw}"
-        flags, force = Flags.NONE, raw
-        if raw < MIN_VALID_FORCE_N:
-            flags |= Flags.BELOW_RANGE
-            force = max(raw, 0.0)
-        if raw >= MAX_VALID_FORCE_N:
-            flags |= Flags.SATURATED
-            force = MAX_VALID_FORCE_N
-        detail = ""
-        if g.saturation_seen:
-            flags |= Flags.SATURATED
-            detail = "gel saturation seen in the frame"
-        chk = self._stats_check()
-        if chk.active:
-            beyond = chk.beyond_coverage(g.area_frac, g.deformation)
-            if beyond:
-                flags |= Flags.SATURATED
-                detail = beyond
-            ood = chk.out_of_distribution(g.thumb)
-            if ood:
-                flags |= Flags.OUT_OF_DISTRIBUTION
-                detail = f"{detail}; {ood}" if detail else ood
-        return flags, force, detail
 
     def _count(self, r: ForceReading) -> None:
         st = self.stats
