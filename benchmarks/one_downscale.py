@@ -280,6 +280,7 @@ def gate_rows(frames: int = 2000, warmup: int = 200) -> list[list[object]]:
     interleaved frame by frame, each frame cold in the cache as a camera's would be.
     """
     from tactile_force.edge import ContactGate, load_bundle
+    from tactile_force.edge import gate_checks as chk
     from tactile_force.edge.data_stats import DataStatsCheck
     from tactile_force.edge.frames import exposure_problem
 
@@ -306,12 +307,15 @@ def gate_rows(frames: int = 2000, warmup: int = 200) -> list[list[object]]:
         ("changed-pixel mask", every, lambda f: a._changed(a._work)),
         ("noise burst / blurred frame check", every + " (trust)", lambda f: a._noise(a._work)),
         ("blobs: contours, fill, area, saturation, deformation", every + " with changed pixels", lambda f: a._blobs()),
-        ("uniform frame check", "global or photometric change", lambda f: cv2.meanStdDev(a._thumb_f)),
-        ("colour order (RGB) check", "global change, no contact tracked", lambda f: a._colour_swapped(a._y)),
-        ("gel/camera motion check", "onset of a change", lambda f: a._motion_explained(a._ref)),
+        ("uniform frame check", "global or photometric change", lambda f: chk.is_uniform(a._thumb_f)),
+        ("colour order (RGB) check", "global change, no contact tracked",
+         lambda f: chk.colour_swapped(a._y, a._ref.x, a.options.fit_tolerance, a._fit_frac)),
+        ("gel/camera motion check", "onset of a change",
+         lambda f: chk.motion_explained(a._thumb_f, a._tmodel, a._tr, a._ref)),
         ("motion basis derived again", "first onset after a background refresh", motion_basis),
-        ("occlusion (dark share) check", "onset with changed pixels", lambda f: a._dark_share(a._ref)),
-        ("mismatch border check", "background mismatch state", lambda f: a._borders_changed()),
+        ("occlusion (dark share) check", "onset with changed pixels",
+         lambda f: chk.dark_share(a._thumb_f, a._ref.dark(), a._tcmp, a._tdark)),
+        ("mismatch border check", "background mismatch state", lambda f: chk.borders_changed(a._inl)),
         ("data statistics check (runtime, bundle's data_stats)", "contact readings",
          lambda f: stats.out_of_distribution(a._thumb)),
     ]

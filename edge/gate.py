@@ -44,6 +44,7 @@ import numpy as np
 
 from .errors import FrameError
 from .frames import TimedFrame, check_frame
+from .gate_checks import Reference, borders_changed, colour_swapped, dark_share, is_uniform, motion_explained
 from .manifest import FrameReduction
 from .reduce import FrameReducer, default_reduction
 
@@ -53,7 +54,6 @@ _log = logging.getLogger(__name__)
 THUMB_CELL_PX = 16
 
 _UINT8 = np.dtype(np.uint8)
-_ALL_SET = (255, 255, 255)
 
 
 @dataclass
@@ -245,46 +245,6 @@ class GateResult:
                 f"background_ready={self.background_ready}, mismatch={self.mismatch!r}, invalid={self.invalid!r})")
 
 
-class _Reference:
-    """What the trust checks need of a background thumbnail (N cells x 3, float32): the
-    cells, their squares, and (lazily) the shift/rotation basis of its gradients."""
-
-    def __init__(self, thumb: np.ndarray) -> None:
-        self.rows, self.cols = thumb.shape[:2]
-        self.x = thumb.reshape(-1, 3)  # a view: follows the refreshed background thumbnail
-        self._motion: tuple[np.ndarray, np.ndarray] | None = None
-        self._dark: np.ndarray | None = None
-        # cell coordinates about the centre (they do not change with the background)
-        yy, xx = np.mgrid[: self.rows, : self.cols].astype(np.float32)
-        yy -= self.rows / 2.0
-        xx -= self.cols / 2.0
-        self._yy, self._xx = yy[..., None], xx[..., None]
-
-    def refreshed(self) -> None:
-        """The background thumbnail changed: the motion basis and the dark level are made
-        again when next needed."""
-        self._motion = None
-        self._dark = None
-
-    def dark(self) -> np.ndarray:
-        """45 % of the background + 2 grey levels per cell and channel (rows x cols x 3,
-        float32): under it on every channel, a cell is dark."""
-        if self._dark is None:
-            self._dark = (0.45 * self.x + 2.0).reshape(self.rows, self.cols, 3)
-        return self._dark
-
-    def motion(self) -> tuple[np.ndarray, np.ndarray]:
-        """(pinv (3, 3N), G^T G (3, 3)) of the basis d(thumb)/d(shift x, shift y, rotation)."""
-        if self._motion is None:
-            t = self.x.reshape(self.rows, self.cols, 3)
-            gx = cv2.Sobel(t, cv2.CV_32F, 1, 0, ksize=3) / 8.0
-            gy = cv2.Sobel(t, cv2.CV_32F, 0, 1, ksize=3) / 8.0
-            rot = (-self._yy * gx + self._xx * gy) / max(self.rows, self.cols)
-            g = np.stack([gx.ravel(), gy.ravel(), rot.ravel()], axis=1).astype(np.float64)
-            self._motion = (np.linalg.pinv(g).astype(np.float32), (g.T @ g).astype(np.float32))
-        return self._motion
-
-
 class ContactGate:
     """Per-sensor contact gate; one instance per sensor, not thread-safe."""
 
@@ -293,7 +253,7 @@ class ContactGate:
         self.options.validate()
         self._bg: np.ndarray | None = None  # blurred background, float32, working res
         self._bg_thumb: np.ndarray | None = None  # its thumbnail, float32
-        self._ref: _Reference | None = None
+        self._ref: Reference | None = None
         self._learn: list[np.ndarray] = []
         self._learn_thumbs: list[np.ndarray] = []
         self._learn_noise: list[float] = []
@@ -598,21 +558,22 @@ class ContactGate:
                        "background (defocus, a smudged lens or condensation?)")
         reason, kind = "", ""
         if not invalid and (global_change or photometric):
-            if float(cv2.meanStdDev(self._thumb_f)[1].max()) < 2.0:
+            if is_uniform(self._thumb_f):
                 invalid = "uniform frame: no gel image (LEDs off, lens covered, a test pattern or a stalled camera?)"
             # A wrong colour order shows from the first frame on, never inside a tracked contact.
-            elif global_change and not was_contact and self._colour_swapped(y):
+            elif global_change and not was_contact and colour_swapped(y, ref.x, o.fit_tolerance, self._fit_frac):
                 invalid = ("colour order: the frame fits the background far better with B and R swapped; the source "
                            "delivers RGB, the package expects BGR (OpenCV order): convert with frame[..., ::-1]")
         if not invalid:
             # A change that appears at once (no contact tracked) is checked for motion and
             # occlusion; a tracked contact is not re-checked every frame.
             onset = not was_contact or global_change
-            explained = self._motion_explained(ref) if onset and self._fit_frac < 0.98 else 0.0
+            explained = (motion_explained(self._thumb_f, self._tmodel, self._tr, ref)
+                         if onset and self._fit_frac < 0.98 else 0.0)
             if explained > o.motion_explained:
                 reason, kind = (f"the gel or camera moved: {100 * explained:.0f} % of the difference is a shift or "
                                 "rotation of the background", "motion")
-            elif onset and frac > 0 and self._dark_share(ref) > 0.04:
+            elif onset and frac > 0 and dark_share(self._thumb_f, ref.dark(), self._tcmp, self._tdark) > 0.04:
                 reason, kind = ("part of the gel is covered or dark (occlusion, a cable or finger in view, "
                                 "a failed LED?)", "global")
             elif global_change and not was_contact:
@@ -639,37 +600,6 @@ class ContactGate:
             self._may_relearn(thumb, frac, self._mismatch_kind)
             return invalid, self._mismatch
         return invalid, ""
-
-    def _dark_share(self, ref: _Reference) -> float:
-        """Share of thumbnail cells where every channel fell below 45 % of the background's
-        (a contact shifts colours; it does not black out the gel)."""
-        cv2.compare(self._thumb_f, ref.dark(), cv2.CMP_LT, dst=self._tcmp)
-        cv2.inRange(self._tcmp, _ALL_SET, _ALL_SET, dst=self._tdark)
-        return cv2.countNonZero(self._tdark) / float(self._tdark.size)
-
-    def _colour_swapped(self, y: np.ndarray) -> bool:
-        """True when B and R swapped fit the background far better than the frame as it is."""
-        ref = self._ref
-        assert ref is not None
-        ys = np.ascontiguousarray(y[:, ::-1])
-        n = float(len(ys))
-        x = ref.x
-        sx, sy, sxx, sxy = x.sum(0), ys.sum(0), (x * x).sum(0), (x * ys).sum(0)
-        den = n * sxx - sx * sx
-        gain = (n * sxy - sx * sy) / np.maximum(den, 1e-3)
-        off = (sy - gain * sx) / n
-        frac = float(np.mean(np.abs(ys - (x * gain + off)).max(axis=1) < self.options.fit_tolerance))
-        return frac >= max(0.4, self._fit_frac + 0.3)
-
-    def _motion_explained(self, ref: _Reference) -> float:
-        """Share of the residual energy a shift/rotation of the background explains (0..1)."""
-        cv2.subtract(self._thumb_f, self._tmodel, dst=self._tr)
-        energy = cv2.norm(self._tr, cv2.NORM_L2SQR)
-        if energy < self._tr.size * 4.0:  # rms residual under 2 grey levels: nothing to explain
-            return 0.0
-        pinv, gtg = ref.motion()
-        d = pinv @ self._tr.reshape(-1)
-        return float(d @ gtg @ d) / energy
 
     def _enter_mismatch(self, reason: str, kind: str) -> None:
         if not self._mismatch:
@@ -699,7 +629,7 @@ class ContactGate:
         if kind == "photometric":
             blob_free = frac < o.off_area_frac
         else:
-            blob_free = kind == "motion" or self._borders_changed() >= 3
+            blob_free = kind == "motion" or borders_changed(self._inl) >= 3
         self._stable = self._stable + 1 if (stable and blob_free) else 0
         if o.relearn_frames and self._stable >= o.relearn_frames:
             reason = self._mismatch
@@ -710,14 +640,6 @@ class ContactGate:
                          o.relearn_frames, reason)
             return True
         return False
-
-    def _borders_changed(self) -> int:
-        """How many of the four border strips (2 thumbnail cells wide) mostly do not fit."""
-        ref = self._ref
-        assert ref is not None
-        bad = self._inl == 0
-        strips = (bad[:2], bad[-2:], bad[:, :2], bad[:, -2:])
-        return sum(1 for s in strips if s.mean() > 0.5)
 
     def _noise(self, work: np.ndarray) -> float:
         """Pixel-noise level of the frame just prepared: mean |subsampled frame - blurred| (grey
@@ -742,7 +664,7 @@ class ContactGate:
         self._bg = bg
         self._bg_thumb = thumb
         self._level = None
-        self._ref = _Reference(thumb)
+        self._ref = Reference(thumb)
         self._gain[:] = 1.0
         self._offset[:] = 0.0
         self._contact = False
