@@ -42,9 +42,10 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from .background_policy import RelearnPolicy
 from .errors import FrameError
 from .frames import TimedFrame, check_frame
-from .gate_checks import Reference, borders_changed, colour_swapped, dark_share, is_uniform, motion_explained
+from .gate_checks import Reference, colour_swapped, dark_share, is_uniform, motion_explained
 from .manifest import FrameReduction
 from .reduce import FrameReducer, default_reduction
 
@@ -269,10 +270,7 @@ class ContactGate:
         self._gain[:] = 1.0
         self._level: tuple[float, float, float] | None = None  # mean colour of _bg_thumb (cached)
         self._bg_noise = 1.0
-        self._mismatch = ""
-        self._mismatch_kind = ""
-        self._stable = 0
-        self._prev_thumb: np.ndarray | None = None
+        self._policy = RelearnPolicy(self.options)  # the mismatch state and when to re-learn
         self._given = 0  # live frames still to check against a background given at start
         self._given_origin = ""
         self._reduced_for: np.ndarray | None = None  # the frame reduce() was called for
@@ -310,7 +308,8 @@ class ContactGate:
         """'learning', 'ok' or 'mismatch: <reason>'."""
         if self._bg is None:
             return "learning"
-        return f"mismatch: {self._mismatch}" if self._mismatch else "ok"
+        reason = self._policy.reason
+        return f"mismatch: {reason}" if reason else "ok"
 
     def capture_background(self, frames: Iterable[np.ndarray | TimedFrame], origin: str = "") -> None:
         """Set the background to the mean of ``frames`` (HxWx3 uint8 BGR, no contact).
@@ -343,7 +342,7 @@ class ContactGate:
         self._learn_thumbs.clear()
         self._learn_noise.clear()
         self._contact = False
-        self._clear_mismatch()
+        self._policy.clear()
 
     def relearn(self, frame: np.ndarray | TimedFrame) -> None:
         """Take ``frame`` (no contact: the gripper is open) as the new background now."""
@@ -530,6 +529,7 @@ class ContactGate:
         o = self.options
         ref = self._ref
         assert ref is not None
+        policy = self._policy
         invalid = ""
         assert self._bg_thumb is not None
         if self._level is None:  # the background thumbnail's mean colour: re-made when it changes
@@ -546,9 +546,9 @@ class ContactGate:
         # frame: the box-averaged image the rest of the gate judges hides a noise burst.
         noise = self._noise(work)
         burst = noise > o.noise_factor * self._bg_noise * max(1.0, *gain) + 1.0
-        suspicious = global_change or photometric or frac > 0 or self._mismatch or burst
+        suspicious = global_change or photometric or frac > 0 or policy.reason or burst
         if not suspicious:
-            self._clear_mismatch()
+            policy.clear()
             return "", ""
         if burst:
             invalid = (f"noise burst: pixel noise {noise:.1f} grey levels against {self._bg_noise:.1f} in the "
@@ -583,63 +583,35 @@ class ContactGate:
                 g = "/".join(f"{v:.2f}" for v in gain)
                 reason, kind = (f"sudden brightness step of {step:.0f} grey levels (LED/exposure: gain B/G/R {g})",
                                 "photometric")
-            elif self._mismatch and self._fit_frac >= 0.8 and not photometric:
-                self._clear_mismatch()
+            elif policy.reason and self._fit_frac >= 0.8 and not photometric:
+                policy.clear()
         if self._given and reason:
             reason = (f"the background given at start ({self._given_origin}) does not fit the live frames: {reason}; "
                       "remove it from the scene to learn the background from the first frames, or record a new one")
         if self._given:
             self._given -= 1
         if reason:
-            self._enter_mismatch(reason, kind)
-            self._may_relearn(thumb, frac, kind)
-            return invalid, self._mismatch
-        if self._mismatch and not invalid:
+            policy.enter(reason, kind)
+            if policy.due(thumb, frac, kind, self._inl):
+                self._relearn_live()
+            return invalid, policy.reason
+        if policy.reason and not invalid:
             # In a mismatch state frames that do not show the reason any more but do not fit
             # well either (fit_frac < 0.8) stay mismatched.
-            self._may_relearn(thumb, frac, self._mismatch_kind)
-            return invalid, self._mismatch
+            if policy.due(thumb, frac, policy.kind, self._inl):
+                self._relearn_live()
+            return invalid, policy.reason
         return invalid, ""
 
-    def _enter_mismatch(self, reason: str, kind: str) -> None:
-        if not self._mismatch:
-            _log.warning("contact gate: background mismatch: %s; readings are background_mismatch (force NaN) "
-                         "until a frame fits again or the background is re-learnt after %d stable frames",
-                         reason, self.options.relearn_frames)
-            self._stable = 0
-            self._prev_thumb = None
-        self._mismatch, self._mismatch_kind = reason, kind
-
-    def _clear_mismatch(self) -> None:
-        if self._mismatch:
-            _log.info("contact gate: the frame fits the background again; mismatch cleared")
-        self._mismatch = self._mismatch_kind = ""
-        self._stable = 0
-        self._prev_thumb = None
-
-    def _may_relearn(self, thumb: np.ndarray, frac: float, kind: str) -> bool:
-        """Count stable frames with no contact-like blob; re-learn after ``relearn_frames``."""
-        o = self.options
-        t = thumb.astype(np.float32)
-        stable = self._prev_thumb is not None and float(np.mean(np.abs(t - self._prev_thumb))) < o.stable_level
-        self._prev_thumb = t
-        # No contact-like blob: after a brightness step nothing is left once compensated; for
-        # a global change (another unit, moved gel) the change reaches every border (a press
-        # does not) or is a pure shift/rotation.
-        if kind == "photometric":
-            blob_free = frac < o.off_area_frac
-        else:
-            blob_free = kind == "motion" or borders_changed(self._inl) >= 3
-        self._stable = self._stable + 1 if (stable and blob_free) else 0
-        if o.relearn_frames and self._stable >= o.relearn_frames:
-            reason = self._mismatch
-            self.capture_background([self._last_frame])
-            self.relearned += 1
-            self._relearned_now = True
-            _log.warning("contact gate: background re-learnt from the live frame after %d stable frames (%s)",
-                         o.relearn_frames, reason)
-            return True
-        return False
+    def _relearn_live(self) -> None:
+        """The recovery policy (edge/background_policy.py) says re-learn: the live frame is the
+        new background now."""
+        reason = self._policy.reason
+        self.capture_background([self._last_frame])
+        self.relearned += 1
+        self._relearned_now = True
+        _log.warning("contact gate: background re-learnt from the live frame after %d stable frames (%s)",
+                     self.options.relearn_frames, reason)
 
     def _noise(self, work: np.ndarray) -> float:
         """Pixel-noise level of the frame just prepared: mean |subsampled frame - blurred| (grey
@@ -668,7 +640,7 @@ class ContactGate:
         self._gain[:] = 1.0
         self._offset[:] = 0.0
         self._contact = False
-        self._clear_mismatch()
+        self._policy.clear()
         self._bg_noise = max(0.5, noise)
 
     # -- internals ----------------------------------------------------------------------

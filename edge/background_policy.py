@@ -1,0 +1,107 @@
+"""The contact gate's background recovery policy (edge/gate.py, ``ContactGate``): the
+mismatch state (why the frame no longer fits the background, and of which kind) and when a
+mismatched background is re-learnt from the live frame.
+
+A mismatch clears as soon as a frame fits again (:meth:`RelearnPolicy.clear`). Otherwise the
+background is re-learnt once ``relearn_frames`` frames in a row were stable (mean thumbnail
+change under ``stable_level`` grey levels) with no contact-like blob: after a brightness step
+(``photometric``) nothing left once compensated; after a motion (``motion``) always; after a
+global change the change must reach at least three of the four borders (a press does not).
+The gate does the re-learning itself (:meth:`ContactGate.capture_background` of the frame)
+when :meth:`RelearnPolicy.due` says so.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from .gate_checks import borders_changed
+
+if TYPE_CHECKING:
+    from .gate import GateOptions
+
+#: the gate's messages keep the gate's logger name
+_log = logging.getLogger(f"{__package__}.gate")
+
+
+class RelearnPolicy:
+    """Mismatch state and re-learning decision for one gate.
+
+    Parameters
+    ----------
+    options : GateOptions
+        The gate's options (read at each call: ``relearn_frames``, ``stable_level``,
+        ``off_area_frac``).
+
+    Attributes
+    ----------
+    reason : str
+        Why the frame does not fit the background ("" = it fits).
+    kind : str
+        ``photometric``, ``motion``, ``global`` ("" without a mismatch).
+    stable : int
+        Stable, blob-free frames counted in a row during the mismatch.
+    """
+
+    __slots__ = ("options", "reason", "kind", "stable", "_prev")
+
+    def __init__(self, options: GateOptions) -> None:
+        self.options = options
+        self.reason = ""
+        self.kind = ""
+        self.stable = 0
+        self._prev: np.ndarray | None = None
+
+    def enter(self, reason: str, kind: str) -> None:
+        """Enter (or stay in) a mismatch; the first one logs a warning and restarts the count."""
+        if not self.reason:
+            _log.warning("contact gate: background mismatch: %s; readings are background_mismatch (force NaN) "
+                         "until a frame fits again or the background is re-learnt after %d stable frames",
+                         reason, self.options.relearn_frames)
+            self.stable = 0
+            self._prev = None
+        self.reason, self.kind = reason, kind
+
+    def clear(self) -> None:
+        """The frame fits the background again (or a new background was set): no mismatch."""
+        if self.reason:
+            _log.info("contact gate: the frame fits the background again; mismatch cleared")
+        self.reason = self.kind = ""
+        self.stable = 0
+        self._prev = None
+
+    def due(self, thumb: np.ndarray, frac: float, kind: str, inliers: np.ndarray) -> bool:
+        """Count this mismatched frame; True when the background is to be re-learnt from it now.
+
+        Parameters
+        ----------
+        thumb : np.ndarray
+            The frame's thumbnail (rows x cols x 3 uint8).
+        frac : float
+            The changed area after compensation, a fraction of the frame.
+        kind : str
+            The mismatch's kind (``photometric``, ``motion`` or ``global``).
+        inliers : np.ndarray
+            rows x cols uint8, non-zero where a thumbnail cell fits the background.
+
+        Returns
+        -------
+        bool
+            ``relearn_frames`` (> 0) stable, blob-free frames in a row have been seen.
+        """
+        o = self.options
+        t = thumb.astype(np.float32)
+        stable = self._prev is not None and float(np.mean(np.abs(t - self._prev))) < o.stable_level
+        self._prev = t
+        # No contact-like blob: after a brightness step nothing is left once compensated; for
+        # a global change (another unit, moved gel) the change reaches every border (a press
+        # does not) or is a pure shift/rotation.
+        if kind == "photometric":
+            blob_free = frac < o.off_area_frac
+        else:
+            blob_free = kind == "motion" or borders_changed(inliers) >= 3
+        self.stable = self.stable + 1 if (stable and blob_free) else 0
+        return bool(o.relearn_frames and self.stable >= o.relearn_frames)
