@@ -1,6 +1,8 @@
-"""The contact gate's background recovery policy (edge/gate.py, ``ContactGate``): the
-mismatch state (why the frame no longer fits the background, and of which kind) and when a
-mismatched background is re-learnt from the live frame.
+"""The contact gate's background learning (edge/gate.py, ``ContactGate``):
+:class:`BackgroundLearner` averages no-contact frames into a background (the first
+``background_frames`` live frames, or the frames given to ``capture_background``), and
+:class:`RelearnPolicy` holds the mismatch state (why the frame no longer fits the background,
+and of which kind) and decides when a mismatched background is re-learnt from the live frame.
 
 A mismatch clears as soon as a frame fits again (:meth:`RelearnPolicy.clear`). Otherwise the
 background is re-learnt once ``relearn_frames`` frames in a row were stable (mean thumbnail
@@ -105,3 +107,36 @@ class RelearnPolicy:
             blob_free = kind == "motion" or borders_changed(inliers) >= 3
         self.stable = self.stable + 1 if (stable and blob_free) else 0
         return bool(o.relearn_frames and self.stable >= o.relearn_frames)
+
+
+class BackgroundLearner:
+    """No-contact frames averaged into a background: each frame's working image (blurred,
+    at the working resolution), its thumbnail and its pixel-noise level, kept as float32
+    copies until :meth:`mean`."""
+
+    __slots__ = ("_work", "_thumbs", "_noise")
+
+    def __init__(self) -> None:
+        self._work: list[np.ndarray] = []
+        self._thumbs: list[np.ndarray] = []
+        self._noise: list[float] = []
+
+    def add(self, work: np.ndarray, thumb: np.ndarray, noise: float) -> int:
+        """Keep one frame (h x w x 3 and rows x cols x 3 uint8, noise in grey levels); returns
+        how many are kept."""
+        self._work.append(work.astype(np.float32))
+        self._thumbs.append(thumb.astype(np.float32))
+        self._noise.append(noise)
+        return len(self._work)
+
+    def mean(self) -> tuple[np.ndarray, np.ndarray, float]:
+        """(background h x w x 3 float32, thumbnail rows x cols x 3 float32, noise level): the
+        means over the kept frames (at least one)."""
+        return (np.asarray(np.mean(self._work, axis=0, dtype=np.float32)),
+                np.asarray(np.mean(self._thumbs, axis=0, dtype=np.float32)), float(np.mean(self._noise)))
+
+    def clear(self) -> None:
+        """Forget the kept frames."""
+        self._work.clear()
+        self._thumbs.clear()
+        self._noise.clear()

@@ -42,7 +42,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from .background_policy import RelearnPolicy
+from .background_policy import BackgroundLearner, RelearnPolicy
 from .errors import FrameError
 from .frames import TimedFrame, check_frame
 from .gate_checks import Reference, colour_swapped, dark_share, is_uniform, motion_explained
@@ -255,9 +255,7 @@ class ContactGate:
         self._bg: np.ndarray | None = None  # blurred background, float32, working res
         self._bg_thumb: np.ndarray | None = None  # its thumbnail, float32
         self._ref: Reference | None = None
-        self._learn: list[np.ndarray] = []
-        self._learn_thumbs: list[np.ndarray] = []
-        self._learn_noise: list[float] = []
+        self._learner = BackgroundLearner()  # the first live frames, while the background is learnt
         self._relearned_now = False
         self._shape: tuple[int, int, int] | None = None
         self._contact = False
@@ -316,19 +314,16 @@ class ContactGate:
 
         origin: where the frames came from (e.g. the scene's background file); when given,
         the first live frames are checked against it and a mismatch names it."""
-        work, thumbs, noise = [], [], []
+        learner = BackgroundLearner()
         first: np.ndarray | None = None
         for i, f in enumerate(frames):
             arr = self._as_array(f, i)
             first = arr if first is None else first
             w, t = self._prepare(arr)
-            work.append(w.astype(np.float32))
-            thumbs.append(t.astype(np.float32))
-            noise.append(self._noise(w))
-        if not work:
+            learner.add(w, t, self._noise(w))
+        if first is None:
             raise FrameError("capture_background: no frames given; expected at least one no-contact frame")
-        self._set_background(np.asarray(np.mean(work, axis=0, dtype=np.float32)),
-                             np.asarray(np.mean(thumbs, axis=0, dtype=np.float32)), float(np.mean(noise)))
+        self._set_background(*learner.mean())
         self._given, self._given_origin = (5, origin) if origin else (0, "")
         assert first is not None
         self.background_image, self.background_origin = first.copy(), origin
@@ -338,9 +333,7 @@ class ContactGate:
         self._bg = None
         self._bg_thumb = None
         self._ref = None
-        self._learn.clear()
-        self._learn_thumbs.clear()
-        self._learn_noise.clear()
+        self._learner.clear()
         self._contact = False
         self._policy.clear()
 
@@ -365,16 +358,10 @@ class ContactGate:
         work, thumb = self._prepare(arr)
         o = self.options
         if self._bg is None:
-            self._learn.append(work.astype(np.float32))
-            self._learn_thumbs.append(thumb.astype(np.float32))
-            self._learn_noise.append(self._noise(work))
-            if len(self._learn) >= o.background_frames:
-                self._set_background(np.asarray(np.mean(self._learn, axis=0, dtype=np.float32)),
-                                     np.asarray(np.mean(self._learn_thumbs, axis=0, dtype=np.float32)),
-                                     float(np.mean(self._learn_noise)))
-                self._learn_noise.clear()
-                self._learn.clear()
-                self._learn_thumbs.clear()
+            learner = self._learner
+            if learner.add(work, thumb, self._noise(work)) >= o.background_frames:
+                self._set_background(*learner.mean())
+                learner.clear()
             self._mask[:] = 0
             r = GateResult(False, 0, False, self._mask, self._full_mask, int(o.downscale), self._exact,
                            background_ready=False)

@@ -73,3 +73,31 @@ def test_relearn_frames_zero_is_never_due():
     p = RelearnPolicy(GateOptions(relearn_frames=0))
     p.enter("step", "photometric")
     assert _due_after(p, 50, "photometric") == 0 and p.stable == 49  # counted, never acted on
+
+
+def test_learner_averages_the_kept_frames_as_float32_copies():
+    from tactile_force.edge.background_policy import BackgroundLearner
+
+    learn = BackgroundLearner()
+    work = np.full((80, 60, 3), 10, np.uint8)
+    thumb = np.full((20, 15, 3), 30, np.uint8)
+    assert learn.add(work, thumb, 1.0) == 1
+    work[:] = 21  # the gate reuses its buffers: the learner keeps copies
+    thumb[:] = 41
+    assert learn.add(work, thumb, 2.0) == 2
+    bg, th, noise = learn.mean()
+    assert bg.dtype == np.float32 and bg.shape == (80, 60, 3) and th.shape == (20, 15, 3)
+    assert float(bg[0, 0, 0]) == 15.5 and float(th[0, 0, 0]) == 35.5 and noise == 1.5
+    learn.clear()
+    assert learn.add(work, thumb, 4.0) == 1 and learn.mean()[2] == 4.0
+
+
+def test_gate_learns_from_the_first_background_frames_live():
+    from tactile_force.edge.gate import ContactGate
+
+    g = ContactGate(GateOptions(background_frames=3))
+    frames = [np.full((320, 240, 3), v, np.uint8) for v in (90, 100, 110)]
+    for f in frames[:2]:
+        assert not g.update(f).background_ready
+    g.update(frames[2])
+    assert g.background_ready and g._bg is not None and float(g._bg[0, 0, 0]) == 100.0
