@@ -1,6 +1,7 @@
 """The contact gate's background learning (edge/gate.py, ``ContactGate``):
 :class:`BackgroundLearner` averages no-contact frames into a background (the first
-``background_frames`` live frames, or the frames given to ``capture_background``), and
+``background_frames`` live frames, or the frames given to ``capture_background``),
+:func:`refresh` lets it follow slow LED drift on frames without contact, and
 :class:`RelearnPolicy` holds the mismatch state (why the frame no longer fits the background,
 and of which kind) and decides when a mismatched background is re-learnt from the live frame.
 
@@ -18,12 +19,14 @@ from __future__ import annotations
 import logging
 from typing import TYPE_CHECKING
 
+import cv2
 import numpy as np
 
 from .gate_checks import borders_changed
 
 if TYPE_CHECKING:
     from .gate import GateOptions
+    from .gate_checks import Reference
 
 #: the gate's messages keep the gate's logger name
 _log = logging.getLogger(f"{__package__}.gate")
@@ -140,3 +143,25 @@ class BackgroundLearner:
         self._work.clear()
         self._thumbs.clear()
         self._noise.clear()
+
+
+def refresh(bg: np.ndarray, bg_thumb: np.ndarray, work: np.ndarray, thumb: np.ndarray, rate: float,
+            ref: Reference) -> None:
+    """Blend a no-contact frame into the background in place (slow LED drift): ``bg`` (h x w x
+    3 float32) += ``rate`` x (``work`` - ``bg``), the same for the thumbnails; the reference's
+    derived values are then made again when next needed.
+
+    Parameters
+    ----------
+    bg, bg_thumb : np.ndarray
+        The background and its thumbnail (float32, updated in place).
+    work, thumb : np.ndarray
+        The frame's working image and thumbnail (uint8, same shapes).
+    rate : float
+        Weight of the frame, 0 < rate < 1 (``GateOptions.refresh_rate``).
+    ref : Reference
+        The background's reference (edge/gate_checks.py), told that it changed.
+    """
+    cv2.accumulateWeighted(work, bg, rate)
+    cv2.accumulateWeighted(thumb, bg_thumb, rate)
+    ref.refreshed()

@@ -42,10 +42,10 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from .background_policy import BackgroundLearner, RelearnPolicy
+from .background_policy import BackgroundLearner, RelearnPolicy, refresh
 from .errors import FrameError
 from .frames import TimedFrame, check_frame
-from .gate_checks import Reference, colour_swapped, dark_share, is_uniform, motion_explained
+from .gate_checks import Reference, colour_swapped, dark_share, is_uniform, motion_explained, noise_verdict
 from .manifest import FrameReduction
 from .reduce import FrameReducer, default_reduction
 
@@ -403,11 +403,8 @@ class ContactGate:
         elif invalid or mismatch:
             self._contact = was_contact and not mismatch and not invalid
         elif not self._contact and o.refresh_rate > 0:
-            cv2.accumulateWeighted(work, self._bg, o.refresh_rate)
-            assert self._bg_thumb is not None
-            cv2.accumulateWeighted(thumb, self._bg_thumb, o.refresh_rate)
-            assert self._ref is not None
-            self._ref.refreshed()
+            assert self._bg_thumb is not None and self._ref is not None
+            refresh(self._bg, self._bg_thumb, work, thumb, o.refresh_rate, self._ref)
             self._level = None
 
         small = self._mask if (s > 1 and self._exact) else self._full_mask
@@ -517,7 +514,6 @@ class ContactGate:
         ref = self._ref
         assert ref is not None
         policy = self._policy
-        invalid = ""
         assert self._bg_thumb is not None
         if self._level is None:  # the background thumbnail's mean colour: re-made when it changes
             self._level = cv2.mean(self._bg_thumb)[:3]
@@ -532,17 +528,11 @@ class ContactGate:
         # Pixel noise: mean |frame - blurred| against the background's level. Measured on every
         # frame: the box-averaged image the rest of the gate judges hides a noise burst.
         noise = self._noise(work)
-        burst = noise > o.noise_factor * self._bg_noise * max(1.0, *gain) + 1.0
+        burst, invalid = noise_verdict(noise, self._bg_noise, gain, o.noise_factor)
         suspicious = global_change or photometric or frac > 0 or policy.reason or burst
         if not suspicious:
             policy.clear()
             return "", ""
-        if burst:
-            invalid = (f"noise burst: pixel noise {noise:.1f} grey levels against {self._bg_noise:.1f} in the "
-                       "background (interference, a failing cable or camera?)")
-        elif noise < 0.45 * self._bg_noise * min(1.0, *gain):
-            invalid = (f"blurred frame: fine detail {noise:.1f} grey levels against {self._bg_noise:.1f} in the "
-                       "background (defocus, a smudged lens or condensation?)")
         reason, kind = "", ""
         if not invalid and (global_change or photometric):
             if is_uniform(self._thumb_f):

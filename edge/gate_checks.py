@@ -7,7 +7,7 @@ decides from their answers (docs/runtime.md, "Flags").
   dark level, the shift/rotation basis), re-made lazily when the background is refreshed;
 - :func:`dark_share` (occlusion), :func:`colour_swapped` (RGB order),
   :func:`motion_explained` (gel/camera moved), :func:`borders_changed` (mismatch borders),
-  :func:`is_uniform` (no gel image).
+  :func:`is_uniform` (no gel image), :func:`noise_verdict` (noise burst, blurred frame).
 """
 
 from __future__ import annotations
@@ -159,3 +159,33 @@ def is_uniform(thumb: np.ndarray) -> bool:
     """True when the thumbnail (rows x cols x 3 float32) has no gel image: every channel's
     spread over the cells is under 2 grey levels."""
     return float(cv2.meanStdDev(thumb)[1].max()) < 2.0
+
+
+def noise_verdict(noise: float, bg_noise: float, gain: list[float], noise_factor: float) -> tuple[bool, str]:
+    """The frame's pixel-noise level against the background's.
+
+    Parameters
+    ----------
+    noise, bg_noise : float
+        Pixel-noise level (mean |frame - blurred frame|, grey levels) of the frame and of the
+        background.
+    gain : list of float
+        The fitted per-channel (B, G, R) gain of the frame against the background.
+    noise_factor : float
+        ``GateOptions.noise_factor``.
+
+    Returns
+    -------
+    tuple of (bool, str)
+        (a noise burst: above ``noise_factor`` x the background's level (scaled by the largest
+        gain above 1) + 1 grey level; why the frame is invalid: the burst, or a blurred frame
+        (under 45 % of the background's fine detail, scaled by the smallest gain below 1),
+        "" otherwise).
+    """
+    if noise > noise_factor * bg_noise * max(1.0, *gain) + 1.0:
+        return True, (f"noise burst: pixel noise {noise:.1f} grey levels against {bg_noise:.1f} in the "
+                      "background (interference, a failing cable or camera?)")
+    if noise < 0.45 * bg_noise * min(1.0, *gain):
+        return False, (f"blurred frame: fine detail {noise:.1f} grey levels against {bg_noise:.1f} in the "
+                       "background (defocus, a smudged lens or condensation?)")
+    return False, ""

@@ -7,6 +7,7 @@ from __future__ import annotations
 import logging
 
 import numpy as np
+import pytest
 from tactile_force.edge.background_policy import RelearnPolicy
 from tactile_force.edge.gate import GateOptions
 
@@ -101,3 +102,16 @@ def test_gate_learns_from_the_first_background_frames_live():
         assert not g.update(f).background_ready
     g.update(frames[2])
     assert g.background_ready and g._bg is not None and float(g._bg[0, 0, 0]) == 100.0
+
+
+def test_refresh_blends_a_frame_in_and_renews_the_reference():
+    from tactile_force.edge.background_policy import refresh
+    from tactile_force.edge.gate_checks import Reference
+
+    bg = np.full((80, 60, 3), 100.0, np.float32)
+    bg_thumb = np.full((20, 15, 3), 100.0, np.float32)
+    ref = Reference(bg_thumb)
+    dark = ref.dark()
+    refresh(bg, bg_thumb, np.full((80, 60, 3), 150, np.uint8), np.full((20, 15, 3), 150, np.uint8), 0.1, ref)
+    assert float(bg[0, 0, 0]) == pytest.approx(105.0) and float(bg_thumb[0, 0, 0]) == pytest.approx(105.0)
+    assert ref.dark() is not dark and float(ref.dark()[0, 0, 0]) == pytest.approx(0.45 * 105.0 + 2.0)

@@ -100,3 +100,15 @@ def test_is_uniform(bg):
     flat = np.full((20, 15, 3), 90.0, np.float32)
     flat[0, 0, 1] = 200.0  # one cell far off: a spread of ~6 grey levels
     assert not is_uniform(flat)
+
+
+def test_noise_verdict_burst_blur_and_fine():
+    from tactile_force.edge.gate_checks import noise_verdict
+
+    assert noise_verdict(2.0, 2.0, [1.0, 1.0, 1.0], 2.2) == (False, "")
+    burst, why = noise_verdict(9.0, 2.0, [1.0, 1.0, 1.0], 2.2)  # > 2.2 x 2 + 1
+    assert burst and why.startswith("noise burst: pixel noise 9.0 grey levels against 2.0")
+    assert noise_verdict(9.0, 2.0, [2.0, 1.0, 1.0], 2.2) == (False, "")  # a brighter frame is noisier
+    burst, why = noise_verdict(0.5, 2.0, [1.0, 1.0, 1.0], 2.2)  # < 45 % of the background's detail
+    assert not burst and why.startswith("blurred frame: fine detail 0.5 grey levels against 2.0")
+    assert noise_verdict(0.5, 2.0, [0.5, 1.0, 1.0], 2.2) == (False, "")  # a darker frame has less detail
