@@ -15,14 +15,12 @@ docs/bench.md), ``report.md`` and ``pareto.png`` (error against p99 latency, the
 
 from __future__ import annotations
 
-import contextlib
 import json
-import logging
 import math
 import os
 import re
 import sys
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -375,19 +373,12 @@ def bench_bundle(path: Path, pool, frames: int = 1000, threads: int = 1, budget_
         attempts=[Attempt(_f(a.p99_ms), _machine_state(a.machine)) for a in attempts], note=note)
 
 
-@contextlib.contextmanager
-def _quiet(*names: str) -> Iterator[None]:
+def _quiet(*names: str):
     """Only errors from these loggers meanwhile (their warnings would be about the bench's own
     virtual frames and background, not the user's sensor)."""
-    logs = [logging.getLogger(n) for n in names]
-    levels = [log.level for log in logs]
-    for log in logs:
-        log.setLevel(logging.ERROR)
-    try:
-        yield
-    finally:
-        for log, level in zip(logs, levels):
-            log.setLevel(level)
+    from tactile_force.edge.logs import quiet_loggers
+
+    return quiet_loggers(*names)
 
 
 def _first_problem(bundle, pool, depth) -> str:

@@ -70,21 +70,21 @@ def _check_args(args: argparse.Namespace) -> list[Path]:
 
 
 def main(args: argparse.Namespace) -> int:
-    import logging
-
     from tactile_force.benchmarks.bench import run_bench, text_table, write_report
+
+    from .logs import quiet_loggers
 
     bundles = _check_args(args)
     # The bench frames are virtual DIGIT frames: a bundle made for another sensor would only
     # warn about its data statistics on every row; the figures are latency, not accuracy.
-    logging.getLogger("tactile_force.edge.data_stats").setLevel(logging.ERROR)
     command = "tactile-force bench " + " ".join(shlex.quote(a) for a in sys.argv[2:]) \
         if len(sys.argv) > 1 and sys.argv[1] == "bench" else "tactile-force bench"
     print(f"bench: {len(bundles)} bundle(s), {args.frames} frames each, {args.threads} thread(s), "
           f"budget {args.budget_ms:g} ms" + (f", error on {args.data}" if args.data else ""), file=sys.stderr)
-    report = run_bench(bundles, frames=args.frames, threads=args.threads, budget_ms=args.budget_ms, data=args.data,
-                       background=args.background, repeats=args.repeats, pause_s=float(args.pause_s),
-                       command=command.strip())
+    with quiet_loggers("tactile_force.edge.data_stats"):
+        report = run_bench(bundles, frames=args.frames, threads=args.threads, budget_ms=args.budget_ms,
+                           data=args.data, background=args.background, repeats=args.repeats,
+                           pause_s=float(args.pause_s), command=command.strip())
     paths = write_report(report, args.out)
     print(text_table(report))
     print("wrote " + ", ".join(str(p) for p in paths))

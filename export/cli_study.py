@@ -46,7 +46,6 @@ def configure(p: argparse.ArgumentParser) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    import logging
 
     from .study import StudyError, StudyOptions, prepare_source, run_study, table
 
@@ -61,8 +60,6 @@ def main(args: argparse.Namespace) -> int:
     if args.out.exists() and not args.out.is_dir():
         raise StudyError(f"--out {args.out}: is a file; expected an output folder")
     # one replay per configuration: the gate's and data statistics' warnings would repeat for each
-    for name in ("tactile_force.edge.data_stats", "tactile_force.edge.gate", "tactile_force.edge.runtime"):
-        logging.getLogger(name).setLevel(logging.ERROR)
     command = "tactile-force study " + " ".join(shlex.quote(a) for a in sys.argv[2:]) \
         if len(sys.argv) > 1 and sys.argv[1] == "study" else "tactile-force study"
     args.out.mkdir(parents=True, exist_ok=True)
@@ -71,8 +68,11 @@ def main(args: argparse.Namespace) -> int:
     o = StudyOptions(budget_ms=args.budget_ms, threads=args.threads, frames=args.frames, quick=args.quick,
                      max_configs=args.max_configs, sensitivity_nodes=args.sensitivity_nodes,
                      max_calibration_frames=args.calib_frames, keep_bundles="all" if args.keep_all else "pareto")
-    report = run_study(fp32, args.data, args.out, o, calibration=args.calib, background=args.background,
-                       command=command.strip(), log=lambda s: print(s, file=sys.stderr))
+    from tactile_force.edge.logs import quiet_loggers
+
+    with quiet_loggers("tactile_force.edge.data_stats", "tactile_force.edge.gate", "tactile_force.edge.runtime"):
+        report = run_study(fp32, args.data, args.out, o, calibration=args.calib, background=args.background,
+                           command=command.strip(), log=lambda s: print(s, file=sys.stderr))
     head, rows = table(report)
     widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(head)]
     print("  ".join(h.ljust(w) for h, w in zip(head, widths)))
