@@ -78,12 +78,17 @@ def cmd_latency(args, argv) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    argv = sys.argv[1:] if argv is None else argv
-    import logging
+    """``python -m benchmarks``; the loggers it quietens are restored when it returns."""
+    from tactile_force.edge.logs import quiet_loggers
 
     # Latency bundles carry random weights and no data_stats: the runtime's one warning per
     # bundle that its out-of-distribution check is skipped is expected here, every row.
-    logging.getLogger("tactile_force.edge.data_stats").setLevel(logging.ERROR)
+    with quiet_loggers("tactile_force.edge.data_stats"):
+        return _main(argv)
+
+
+def _main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
     ap = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__)
     ap.add_argument("what", nargs="?", choices=(*TASKS, "robustness", "trust", "intervals", "one-downscale"),

@@ -93,7 +93,7 @@ def test_another_sensor_adds_out_of_distribution_also_to_a_failed_estimate():
 
 def test_data_stats_check_is_made_on_first_use_and_off_without_data_stats(caplog):
     j = EstimateJudge(_model(None))
-    with caplog.at_level(logging.WARNING):
+    with caplog.at_level(logging.WARNING, logger="tactile_force.edge.data_stats"):
         assert j.estimate(math.nan, _gate())[0] == Flags.INVALID_INPUT
         assert "data_stats" not in caplog.text  # not built for a failed estimate
         assert j.estimate(4.0, _gate(area_px=int(0.9 * 320 * 240), thumb_value=250)) == (Flags.NONE, 4.0, "")
