@@ -214,37 +214,20 @@ def contact_frames(n: int = 64, seed: int = 0):
     seed : int
         Seed of the virtual DIGIT and of the contacts.
     """
-    from tactile_force.edge.synthetic import VirtualDigit, VirtualDigitOptions, paper_indenter_names
+    from .frames import FramePool, contact_renders
 
-    from .frames import FramePool
-
-    digit = VirtualDigit(VirtualDigitOptions(seed=seed))
-    rng = np.random.default_rng(seed)
-    names = paper_indenter_names() + ["sphere_4mm", "marble", "cylinder_8mm"]
-    bgs = np.stack([digit.render(None, 0.0).frame for _ in range(5)])
     rgb: list[np.ndarray] = []
     force: list[float] = []
     with _quiet("tactile_force.edge.gate"):  # renders the gate cannot judge are dropped here, not warned about
-        _render_contacts(digit, rng, names, bgs, n, rgb, force)
+        bgs, renders = contact_renders(seed)
+        for frame, f, g in renders:
+            if len(rgb) >= n:
+                break
+            if g.contact and not g.mismatch and not g.invalid:
+                rgb.append(frame)
+                force.append(f)
     arr = np.stack(rgb)
     return FramePool(arr, np.zeros((*arr.shape[:3], 1), np.uint8), np.asarray(force, np.float32), bgs, [])
-
-
-def _render_contacts(digit, rng, names, bgs, n, rgb, force) -> None:
-    from tactile_force.edge.gate import ContactGate
-    from tactile_force.edge.synthetic import ContactSpec
-
-    while len(rgb) < n:
-        spec = ContactSpec(names[int(rng.integers(len(names)))], (rng.uniform(90, 230), rng.uniform(70, 170)),
-                           rotation_deg=float(rng.uniform(0, 360)))
-        f = float(rng.uniform(1.5, 14.5))
-        frame = digit.render(spec, f).frame
-        gate = ContactGate()
-        gate.capture_background(bgs)
-        g = gate.update(frame)
-        if g.contact and not g.mismatch and not g.invalid:
-            rgb.append(frame)
-            force.append(f)
 
 
 def _depth_factory(manifest) -> Callable[[], object] | None:
@@ -542,13 +525,18 @@ def plot(report: BenchReport, path: Path) -> Path:
     return error_vs_latency(pts, report.budget_ms, path, title=f"{report.machine.cpu}, {report.threads} thread(s)")
 
 
+def write_json(path: Path, obj: object) -> Path:
+    """``obj`` as indented JSON at ``path``, replaced atomically (a reader never sees half a file)."""
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.write_text(json.dumps(obj, indent=2) + "\n")
+    os.replace(tmp, path)
+    return path
+
+
 def write_report(report: BenchReport, out: Path) -> list[Path]:
     """Write report.json, report.md and pareto.png into ``out`` (made if missing)."""
     out.mkdir(parents=True, exist_ok=True)
-    js = out / REPORT_JSON
-    tmp = js.with_suffix(".json.tmp")
-    tmp.write_text(json.dumps(report.to_json(), indent=2) + "\n")
-    os.replace(tmp, js)
+    js = write_json(out / REPORT_JSON, report.to_json())
     md = out / REPORT_MD
     md.write_text(markdown(report))
     return [js, md, plot(report, out / PLOT_PNG)]

@@ -49,7 +49,15 @@ def depth_stage():
     return virtual_depth_stage()
 
 
-def _render(n: int, seed: int) -> FramePool:
+def contact_renders(seed: int):
+    """The virtual DIGIT pressed by random indenters (paper shapes + sphere, marble, cylinder;
+    1.5-14.5 N), each render judged by a fresh contact gate on 5 no-contact backgrounds.
+
+    Returns
+    -------
+    (backgrounds (5,320,240,3) uint8 BGR, an endless iterator of (frame HxWx3 uint8 BGR,
+    force N, GateResult)); callers keep the renders they can use.
+    """
     from tactile_force.edge import ContactGate
     from tactile_force.edge.synthetic import ContactSpec, VirtualDigit, VirtualDigitOptions, paper_indenter_names
 
@@ -57,16 +65,27 @@ def _render(n: int, seed: int) -> FramePool:
     rng = np.random.default_rng(seed)
     names = paper_indenter_names() + ["sphere_4mm", "marble", "cylinder_8mm"]
     bgs = np.stack([digit.render(None, 0.0).frame for _ in range(5)])
+
+    def renders():
+        while True:
+            spec = ContactSpec(names[int(rng.integers(len(names)))], (rng.uniform(90, 230), rng.uniform(70, 170)),
+                               rotation_deg=float(rng.uniform(0, 360)))
+            f = float(rng.uniform(1.5, 14.5))
+            frame = digit.render(spec, f).frame
+            gate = ContactGate()
+            gate.capture_background(bgs)
+            yield frame, f, gate.update(frame)
+
+    return bgs, renders()
+
+
+def _render(n: int, seed: int) -> FramePool:
+    bgs, renders = contact_renders(seed)
     stage = depth_stage()
     rgb, depth, force = [], [], []
-    while len(rgb) < n:
-        spec = ContactSpec(names[int(rng.integers(len(names)))], (rng.uniform(90, 230), rng.uniform(70, 170)),
-                           rotation_deg=float(rng.uniform(0, 360)))
-        f = float(rng.uniform(1.5, 14.5))
-        frame = digit.render(spec, f).frame
-        gate = ContactGate()
-        gate.capture_background(bgs)
-        g = gate.update(frame)
+    for frame, f, g in renders:
+        if len(rgb) >= n:
+            break
         if not g.contact:
             continue
         res = stage.process(frame, g.mask)

@@ -519,13 +519,11 @@ def markdown(report: StudyReport, title: str = "Quantization study") -> str:
 
 def write_study(report: StudyReport, out: Path) -> list[Path]:
     """Write study.json, study.md and pareto.png into ``out``."""
+    from tactile_force.benchmarks.bench import write_json
     from tactile_force.edge.plots import ParetoPoint, error_vs_latency
 
     out.mkdir(parents=True, exist_ok=True)
-    js = out / STUDY_JSON
-    tmp = js.with_suffix(".json.tmp")
-    tmp.write_text(json.dumps(report.to_json(), indent=2) + "\n")
-    os.replace(tmp, js)
+    js = write_json(out / STUDY_JSON, report.to_json())
     (out / STUDY_MD).write_text(markdown(report))
     pts = [ParetoPoint(c.name, c.latency_ms.p99 if c.latency_ms.p99 is not None else math.nan,
                        c.error.re_mean if c.error is not None else None) for c in report.configurations]
