@@ -612,7 +612,7 @@ class ForceRuntime:
             # (the frame's one downscale); otherwise the frame and the full-resolution mask
             grid = getattr(s.depth, "grid_frame_shape", None)
             if grid is not None and g.reduced is not None and g.reduced.shape == grid:
-                res = s.depth.process(g.reduced, g.reduced_mask)
+                res = s.depth.process(g.reduced, g.reduced_mask, checked=True)  # exposure judged above
             else:
                 res = s.depth.process(frame, g.mask)
             t3 = self.clock()

@@ -20,8 +20,9 @@ def exact_depth_image(height: np.ndarray, mask: np.ndarray, levels_per_px: float
     """height: H x W float (px of indentation); mask: H x W bool; out: H x W x 1 uint8."""
     o = out[..., 0]
     scaled = np.multiply(height, levels_per_px, dtype=np.float32)
-    np.clip(scaled, 0.0, 255.0, out=scaled)
-    scaled[~mask] = 0.0
+    np.maximum(scaled, 0.0, out=scaled)
+    np.minimum(scaled, 255.0, out=scaled)
+    np.multiply(scaled, mask, out=scaled)  # 0 outside the mask (values >= 0: no -0.0)
     np.rint(scaled, out=scaled)
     o[...] = scaled
     return out

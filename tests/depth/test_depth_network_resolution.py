@@ -120,6 +120,24 @@ def test_stage_at_network_resolution_close_to_full_resolution_reduced(press):
     assert abs(float(grid.height.max()) - float(full.height.max())) < 0.05 * float(full.height.max())
 
 
+def test_checked_skips_only_the_repeated_frame_checks(press):
+    """``checked=True`` (the runtime: it judged the reduced image's exposure) gives the same depth
+    as the unchecked call, and a frame that is not a grid image is still checked."""
+    from tactile_force.edge.reduce import default_reduction, reduce_frames
+
+    frame, mask = press
+    stage = DepthStage(DepthOptions(mapping=MAPPING, levels_per_px=255 / 48, downscale=4))
+    small = reduce_frames(frame[None], default_reduction(4))[0]
+    a = stage.process(small, mask[::4, ::4])
+    b = stage.process(small, np.ascontiguousarray(mask[::4, ::4]), checked=True)
+    assert a.ok and b.ok and a.contact_px == b.contact_px
+    np.testing.assert_array_equal(a.depth, b.depth)
+    bad = stage.process(small.astype(np.float32), mask[::4, ::4], checked=True)  # not what checked vouches for
+    assert not bad.ok and "uint8" in bad.detail
+    dark = stage.process(np.zeros_like(small), mask[::4, ::4])
+    assert not dark.ok and "all-dark" in dark.detail
+
+
 def test_bad_shapes_named_not_raised(press):
     frame, mask = press
     stage = DepthStage(DepthOptions(mapping=MAPPING, downscale=4))
