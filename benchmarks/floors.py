@@ -196,15 +196,10 @@ def width_eighth_graph(dest: Path) -> Path | str:
 
 
 def _session(path: Path):
-    import onnxruntime as ort
+    """(bare session, its input name) for the graph at ``path``."""
+    from .graph_profile import bare_session
 
-    so = ort.SessionOptions()
-    so.intra_op_num_threads = 1
-    so.inter_op_num_threads = 1
-    so.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
-    so.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL
-    so.log_severity_level = 3
-    s = ort.InferenceSession(str(path), so, providers=["CPUExecutionProvider"])
+    s = bare_session(path)
     return s, s.get_inputs()[0].name
 
 

@@ -31,7 +31,10 @@ REPO = Path(__file__).resolve().parents[1]
 DEFAULT_DIR = REPO / "edge" / "models" / "default"
 
 
-def _session(model: bytes | str, level: str = "all", denormal_zero: bool = False, spinning: bool | None = None):
+def bare_session(model: bytes | str | Path, level: str = "all", denormal_zero: bool = False,
+                 spinning: bool | None = None):
+    """A bare onnxruntime session as the benchmarks' yardstick: one intra-op and one inter-op
+    thread, sequential, CPU provider, graph optimisation ``level`` ('all', 'extended', 'basic')."""
     import onnxruntime as ort
 
     so = ort.SessionOptions()
@@ -46,7 +49,8 @@ def _session(model: bytes | str, level: str = "all", denormal_zero: bool = False
         so.add_session_config_entry("session.set_denormal_as_zero", "1")
     if spinning is not None:
         so.add_session_config_entry("session.intra_op.allow_spinning", "1" if spinning else "0")
-    return ort.InferenceSession(model, so, providers=["CPUExecutionProvider"])
+    return ort.InferenceSession(model if isinstance(model, bytes) else str(model), so,
+                                providers=["CPUExecutionProvider"])
 
 
 def nchw_input(model_bytes: bytes) -> bytes:
@@ -140,15 +144,15 @@ def variants(bundle: Path = DEFAULT_DIR):
     raw = b.onnx_path.read_bytes()
     name = b.manifest.inputs[0].name
     nhwc = lambda x: {name: x}  # noqa: E731
-    out = [("shipped: int8 QDQ, NHWC uint8 input, ORT_ENABLE_ALL", _session(raw), nhwc),
-           ("graph optimisation level extended", _session(raw, "extended"), nhwc),
-           ("graph optimisation level basic", _session(raw, "basic"), nhwc),
-           ("session.set_denormal_as_zero = 1", _session(raw, denormal_zero=True), nhwc),
-           ("session.intra_op.allow_spinning = 0", _session(raw, spinning=False), nhwc)]
+    out = [("shipped: int8 QDQ, NHWC uint8 input, ORT_ENABLE_ALL", bare_session(raw), nhwc),
+           ("graph optimisation level extended", bare_session(raw, "extended"), nhwc),
+           ("graph optimisation level basic", bare_session(raw, "basic"), nhwc),
+           ("session.set_denormal_as_zero = 1", bare_session(raw, denormal_zero=True), nhwc),
+           ("session.intra_op.allow_spinning = 0", bare_session(raw, spinning=False), nhwc)]
     try:
         out.append(("NCHW uint8 input (Transpose out of the graph; np.transpose + copy timed with it)",
-                    _session(nchw_input(raw)), lambda x: {name: np.ascontiguousarray(x.transpose(0, 3, 1, 2))}))
-        out.append(("fp32 (same weights dequantized, no Q/DQ)", _session(fp32_graph(raw)), nhwc))
+                    bare_session(nchw_input(raw)), lambda x: {name: np.ascontiguousarray(x.transpose(0, 3, 1, 2))}))
+        out.append(("fp32 (same weights dequantized, no Q/DQ)", bare_session(fp32_graph(raw)), nhwc))
     except ImportError:
         pass
     return out

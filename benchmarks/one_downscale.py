@@ -191,12 +191,12 @@ def interleaved(frames: int = 2000, warmup: int = 200) -> dict:
     (c1733e6, full-resolution input: the yardstick), (3) a ``ForceRuntime`` step with the
     reference graph as its bundle (the full-resolution path, today's runtime code).
     Returns {'after': {stage: samples ms}, 'before': {...}, 'bare': samples ms, 'machine': state}."""
-    import onnxruntime as ort
     from tactile_force.edge import ContactGate, OnnxForceModel
     from tactile_force.edge.reading import Flags
     from tactile_force.edge.runtime import ForceRuntime, RuntimeOptions, Sensor
 
     from .frames import frame_pool
+    from .graph_profile import bare_session
     from .latency import MemorySource
     from .machine import CpuWindow
 
@@ -211,13 +211,7 @@ def interleaved(frames: int = 2000, warmup: int = 200) -> dict:
                                      OnnxForceModel(bundle, threads=1),
                                      RuntimeOptions(threads=1, deadline_ms=1e9, latency_window=16, grabbers=False))
         samples[key] = np.full((n, 4), np.nan)
-    so = ort.SessionOptions()
-    so.intra_op_num_threads = 1
-    so.inter_op_num_threads = 1
-    so.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
-    so.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL
-    so.log_severity_level = 3
-    bare_sess = ort.InferenceSession(str(REFERENCE_GRAPH), so, providers=["CPUExecutionProvider"])
+    bare_sess = bare_session(REFERENCE_GRAPH)
     bare = np.full(n, np.nan)
     window = CpuWindow()
     for i in range(n):
