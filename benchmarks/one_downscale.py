@@ -20,9 +20,13 @@ import sys
 import time
 from dataclasses import replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
+
+if TYPE_CHECKING:
+    from tactile_force.edge.metrics import ErrorStats
 
 REPO = Path(__file__).resolve().parents[1]
 REFERENCE_GRAPH = REPO / "benchmarks" / "reference_graphs" / "default_c1733e6.onnx"
@@ -46,7 +50,7 @@ def reductions():
              FrameReduction(Reduction.AREA_2X_STEPS, 4))]
 
 
-def bundle_errors(model, data) -> object:
+def bundle_errors(model, data) -> ErrorStats:
     """edge.metrics.ErrorStats of an OnnxForceModel on labelled frames (full-resolution frames
     through ``predict``, which reduces them itself)."""
     from tactile_force.edge.metrics import error_stats
@@ -161,7 +165,7 @@ def reduction_timings(repeats: int = 2000) -> list[list[object]]:
         fn()
         d = np.abs(out.astype(np.float64) - exact)
         diffs[k] = (float(d.max()), float((np.abs(out.astype(np.int64) - np.round(exact)) > 0).mean()))
-    times = {k: [] for k in cands}
+    times: dict[str, list[float]] = {k: [] for k in cands}
     for _ in range(repeats):
         for k, fn in cands.items():
             t0 = time.perf_counter_ns()
