@@ -22,7 +22,6 @@ import argparse
 import math
 import os
 import sys
-import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -59,30 +58,6 @@ def _test_split(limit: int = 0):
     return data.rgb[idx], data.force[idx].astype(np.float64), gains, grasps
 
 
-class _ListSource:
-    """A FrameSource over a list of frames with their true forces (one pass)."""
-
-    name = "memory"
-
-    def __init__(self, frames: list[np.ndarray], truth: list[float]) -> None:
-        from tactile_force.edge.frames import SourceStats
-
-        self.frames, self.truth, self.stats = frames, truth, SourceStats()
-
-    def read(self):
-        from tactile_force.edge.frames import TimedFrame
-
-        i = self.stats.frames
-        if i >= len(self.frames):
-            return None
-        self.stats.frames += 1
-        now = time.monotonic_ns()
-        return TimedFrame(self.frames[i], now, i, arrival_ns=now, truth_n=self.truth[i])
-
-    def close(self) -> None:
-        pass
-
-
 def runtime_error(bundle_dir: Path, frames: np.ndarray, forces: np.ndarray, gains: list, grasps: list,
                   threads: int = 1) -> RuntimeError_:
     """Error of ``bundle_dir`` on labelled frames through ForceRuntime (see module doc)."""
@@ -90,6 +65,8 @@ def runtime_error(bundle_dir: Path, frames: np.ndarray, forces: np.ndarray, gain
     from tactile_force.edge.metrics import error_stats
     from tactile_force.edge.runtime import ForceRuntime, RuntimeOptions, Sensor
     from tactile_force.edge.synthetic import VirtualDigit, VirtualDigitOptions
+
+    from .latency import ListSource
 
     bundle = load_bundle(bundle_dir)
     model = OnnxForceModel(bundle, threads=threads)
@@ -102,7 +79,7 @@ def runtime_error(bundle_dir: Path, frames: np.ndarray, forces: np.ndarray, gain
         bg = digit.render(None, 0.0, led_gain=key[2], rng=np.random.default_rng(0)).frame
         gate = ContactGate()
         gate.capture_background([bg])
-        src = _ListSource([frames[i] for i in members], [float(forces[i]) for i in members])
+        src = ListSource([frames[i] for i in members], [float(forces[i]) for i in members])
         rt = ForceRuntime([Sensor("s", src, gate)], model, RuntimeOptions(threads=threads, deadline_ms=1e9),
                           owns_model=False)
         for r in iter_readings(rt):

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -104,6 +104,28 @@ class MemorySource(FrameSource):
         self.stats.frames += 1
         now = self.clock()
         return TimedFrame(self.frames[i % len(self.frames)], now, i, arrival_ns=now)
+
+
+class ListSource(FrameSource):
+    """A finite FrameSource over frames in memory, each read once, with its true force (N;
+    None = unknown or cannot be judged): what the error, trust and stability benchmarks feed
+    the runtime. Each frame arrives when read() is called (``arrival_ns``)."""
+
+    name = "memory"
+
+    def __init__(self, frames: Sequence[np.ndarray] | np.ndarray, truth: Sequence[float | None] | None = None,
+                 clock: Clock = time.monotonic_ns) -> None:
+        super().__init__()
+        self.frames, self.clock = frames, clock
+        self.truth: list[float | None] = list(truth) if truth is not None else [None] * len(frames)
+
+    def read(self) -> TimedFrame | None:
+        i = self.stats.frames
+        if i >= len(self.frames):
+            return None
+        self.stats.frames += 1
+        now = self.clock()
+        return TimedFrame(self.frames[i], now, i, self.truth[i], arrival_ns=now)
 
 
 class TorchEager:

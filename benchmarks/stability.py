@@ -11,15 +11,14 @@ along force sweeps, and the int8 vs fp32 divergence at the extremes.
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from tactile_force.edge import FrameSource, TimedFrame
 
 from .bundles import PRECISIONS, ModelConfig, latency_bundle, trained_models
 from .frames import depth_stage, frame_pool
+from .latency import ListSource
 from .machine import command_line, describe_machine, header
 from .stats import markdown_table
 
@@ -94,24 +93,6 @@ def build_cases(quick: bool = False) -> list[Case]:
     bad[2][100:120, 100:120] = np.nan
     cases.append(Case("float frames with NaN / inf", bad, [8.0] * 3, "invalid_input"))
     return cases
-
-
-class ListSource(FrameSource):
-    """A finite frame source over in-memory frames, with ground truth (N)."""
-
-    name = "stability"
-
-    def __init__(self, frames: list, truth: list[float]) -> None:
-        super().__init__()
-        self._frames, self._truth, self._i = frames, truth, 0
-
-    def read(self) -> TimedFrame | None:
-        if self._i >= len(self._frames):
-            return None
-        i = self._i
-        self._i += 1
-        self.stats.frames += 1
-        return TimedFrame(self._frames[i], time.monotonic_ns(), i, self._truth[i])
 
 
 def run_case(model, case: Case, background: np.ndarray) -> Outcome:

@@ -31,8 +31,8 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from tactile_force.edge import FrameSource, TimedFrame
 
+from .latency import ListSource
 from .machine import command_line, describe_machine, header
 from .stats import markdown_table
 
@@ -155,24 +155,6 @@ def adversarial(bg: np.ndarray, others: dict[str, np.ndarray], seed: int = 0) ->
 
 
 # -- runtime ------------------------------------------------------------------------------------
-class ListSource(FrameSource):
-    """A finite source over in-memory frames with ground truth (N; None = cannot be judged)."""
-
-    name = "trust"
-
-    def __init__(self, frames: list[np.ndarray], truth: list[float | None]) -> None:
-        super().__init__()
-        self._frames, self._truth = frames, truth
-
-    def read(self) -> TimedFrame | None:
-        i = self.stats.frames
-        if i >= len(self._frames):
-            return None
-        self.stats.frames += 1
-        now = time.monotonic_ns()
-        return TimedFrame(self._frames[i], now, i, self._truth[i], arrival_ns=now)
-
-
 def run_sequence(model, frames: list[np.ndarray], truth: list[float | None], background: list[np.ndarray] | None,
                  gate_options=None) -> list:
     """Readings of the runtime on ``frames`` (background captured from ``background``, else learnt)."""

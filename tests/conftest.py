@@ -6,6 +6,7 @@ import os
 from pathlib import Path
 
 import pytest
+from tactile_force.edge.frames import FrameSource, TimedFrame
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED_DATA = Path(os.environ.get("TACTILE_FORCE_SHARED_DATA", REPO.parent / "shared" / "data"))
@@ -22,6 +23,31 @@ def shared_data(*parts: str) -> Path:
     if not p.exists():
         pytest.skip(f"real sensor data not found at {p} (set TACTILE_FORCE_SHARED_DATA to ../shared/data)")
     return p
+
+
+class ListSource(FrameSource):
+    """A finite source over in-memory frames, each read once, with its true force (N; None =
+    unknown); ``closed`` tells whether the runtime closed it. Timestamps are 0, the index is the
+    frame's position."""
+
+    name = "memory"
+
+    def __init__(self, frames, truth=None) -> None:
+        super().__init__()
+        self.frames = list(frames)
+        truth = [None] * len(self.frames) if truth is None else truth
+        self.truth = [None if t is None else float(t) for t in truth]
+        self.closed = False
+
+    def read(self):
+        i = self.stats.frames
+        if i >= len(self.frames):
+            return None
+        self.stats.frames += 1
+        return TimedFrame(self.frames[i], 0, i, self.truth[i])
+
+    def close(self) -> None:
+        self.closed = True
 
 
 @pytest.fixture

@@ -17,33 +17,14 @@ import pytest
 from tactile_force.edge import (
     ContactGate,
     ForceRuntime,
-    FrameSource,
     OnnxForceModel,
     RuntimeOptions,
     Sensor,
-    TimedFrame,
     errors,
 )
 from tactile_force.edge.scene import default_bundle_path
 
-from tests.conftest import shared_data
-
-
-class ListSource(FrameSource):
-    def __init__(self, frames) -> None:
-        super().__init__()
-        self.frames = list(frames)
-        self.closed = False
-
-    def read(self):
-        i = self.stats.frames
-        if i >= len(self.frames):
-            return None
-        self.stats.frames += 1
-        return TimedFrame(self.frames[i], 0, i)
-
-    def close(self) -> None:
-        self.closed = True
+from tests.conftest import ListSource, shared_data
 
 
 def _frames(aurova_dir) -> tuple[np.ndarray, list[np.ndarray]]:

@@ -12,11 +12,13 @@ import numpy as np
 import pytest
 from tactile_force.edge import BundleError, ContactGate, OnnxForceModel, load_bundle
 from tactile_force.edge.errors import FrameError
-from tactile_force.edge.frames import FRAME_SHAPE, FrameSource, TimedFrame
+from tactile_force.edge.frames import FRAME_SHAPE
 from tactile_force.edge.manifest import FORMAT_VERSION, FrameReduction, Reduction, manifest_from_json
 from tactile_force.edge.reduce import FrameReducer, default_reduction, reduce_frames
 from tactile_force.edge.runtime import ForceRuntime, RuntimeOptions, Sensor
 from tactile_force.edge.scene import default_bundle_path
+
+from tests.conftest import ListSource
 
 REPO = Path(__file__).resolve().parents[2]
 REFERENCE = REPO / "benchmarks" / "reference_graphs" / "default_c1733e6.onnx"
@@ -114,21 +116,6 @@ def test_graph_contract_follows_the_network_input_record(tmp_path):
         load_bundle(tmp_path / "lie")
 
 
-class _Frames(FrameSource):
-    name = "memory"
-
-    def __init__(self, frames: np.ndarray) -> None:
-        super().__init__()
-        self.frames = frames
-
-    def read(self) -> TimedFrame | None:
-        i = self.stats.frames
-        if i >= len(self.frames):
-            return None
-        self.stats.frames += 1
-        return TimedFrame(self.frames[i], i, i, arrival_ns=i)
-
-
 class _Watch:
     """The real OnnxForceModel, recording what the runtime hands it (no fake inference)."""
 
@@ -168,7 +155,7 @@ def test_one_downscale_per_frame_shared_by_gate_and_model(monkeypatch, sensors):
         g = ContactGate()
         g.capture_background([_background()])
         gates.append(g)
-        sens.append(Sensor(f"s{k}", _Frames(frames), g))
+        sens.append(Sensor(f"s{k}", ListSource(frames), g))
     seen_by_gate: list[np.ndarray] = []
     orig_update = ContactGate.update
 
@@ -200,7 +187,7 @@ def test_full_resolution_bundles_keep_their_path(tmp_path):
     watch = _Watch(OnnxForceModel(tmp_path / "old.onnx"))
     g = ContactGate()
     g.capture_background([_background()])
-    rt = ForceRuntime([Sensor("s", _Frames(_frames(2)), g)], watch, RuntimeOptions(deadline_ms=1e9))
+    rt = ForceRuntime([Sensor("s", ListSource(_frames(2)), g)], watch, RuntimeOptions(deadline_ms=1e9))
     rt.run()
     assert [k for k, _ in watch.seen] == ["full", "full"] and watch.seen[0][1].shape[1:] == FRAME_SHAPE
 

@@ -19,6 +19,8 @@ from tactile_force.edge.manifest import Precision, Reduction
 from tactile_force.edge.reading import Flags
 from tactile_force.edge.runtime import ForceRuntime, RuntimeOptions, Sensor
 
+from tests.conftest import ListSource
+
 DEPTH_BUNDLES = ("d", "rgbmod_d")
 
 
@@ -62,31 +64,10 @@ def contact_pool():
     return contact_frames(40, seed=7)
 
 
-class _Frames:
-    name = "memory"
-
-    def __init__(self, frames, truth):
-        from tactile_force.edge.frames import SourceStats
-
-        self.frames, self.truth, self.stats = frames, truth, SourceStats()
-
-    def read(self):
-        from tactile_force.edge.frames import TimedFrame
-
-        i = self.stats.frames
-        if i >= len(self.frames):
-            return None
-        self.stats.frames += 1
-        return TimedFrame(self.frames[i], i, i, truth_n=float(self.truth[i]))
-
-    def close(self):
-        pass
-
-
 def _read_all(bundle_dir, pool, depth_factory=None):
     gate = ContactGate()
     gate.capture_background(pool.background)
-    rt = ForceRuntime([Sensor("s", _Frames(pool.rgb, pool.force), gate)],
+    rt = ForceRuntime([Sensor("s", ListSource(pool.rgb, pool.force), gate)],
                       OnnxForceModel(load_bundle(bundle_dir)), RuntimeOptions(deadline_ms=1e9),
                       depth_factory=depth_factory)
     out = []

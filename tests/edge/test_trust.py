@@ -17,33 +17,17 @@ from tactile_force.edge import (
     ContactGate,
     Flags,
     ForceRuntime,
-    FrameSource,
     GateOptions,
     RuntimeOptions,
     Sensor,
-    TimedFrame,
 )
 from tactile_force.edge.data_stats import DataStats, DataStatsCheck, compute_data_stats
 
-from tests.conftest import shared_data
+from tests.conftest import ListSource, shared_data
 
 JUDGING = (Flags.NO_CONTACT | Flags.INVALID_INPUT | Flags.BACKGROUND_MISMATCH | Flags.OUT_OF_DISTRIBUTION
            | Flags.SATURATED)
 HOME = "aurova_background_b.png"  # the AUROVA unit and session (the grasp's, and the bundle's training background)
-
-
-class ListSource(FrameSource):
-    def __init__(self, frames, truth=None) -> None:
-        super().__init__()
-        self.frames = list(frames)
-        self.truth = list(truth) if truth is not None else [None] * len(self.frames)
-
-    def read(self):
-        i = self.stats.frames
-        if i >= len(self.frames):
-            return None
-        self.stats.frames += 1
-        return TimedFrame(self.frames[i], 0, i, self.truth[i])
 
 
 def _unit(name: str) -> np.ndarray:

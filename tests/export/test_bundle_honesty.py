@@ -19,11 +19,9 @@ from tactile_force.edge import (
     ContactGate,
     Flags,
     ForceRuntime,
-    FrameSource,
     OnnxForceModel,
     RuntimeOptions,
     Sensor,
-    TimedFrame,
     load_bundle,
 )
 from tactile_force.edge.cli import main as cli_main
@@ -32,21 +30,7 @@ from tactile_force.export import ModelSpec, save_checkpoint
 from tactile_force.export.compress import CompressOptions, Rung, compress_model
 from tactile_force.export.training import Frames, TrainOptions, train_network
 
-from tests.conftest import shared_data
-
-
-class ListSource(FrameSource):
-    def __init__(self, frames, truth=None) -> None:
-        super().__init__()
-        self.frames = list(frames)
-        self.truth = list(truth) if truth is not None else [None] * len(self.frames)
-
-    def read(self):
-        i = self.stats.frames
-        if i >= len(self.frames):
-            return None
-        self.stats.frames += 1
-        return TimedFrame(self.frames[i], 0, i, self.truth[i])
+from tests.conftest import ListSource, shared_data
 
 
 @pytest.fixture(scope="module")
