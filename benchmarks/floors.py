@@ -163,7 +163,7 @@ def width_eighth_graph(dest: Path) -> Path | str:
     """The default's topology at width 1/8 (random weights, int8 static, 80 x 60 input) as a
     bundle in ``dest``; a string saying why not when torch (the export extra) is absent."""
     try:
-        import torch  # noqa: F401
+        import torch
     except ImportError:
         return "needs torch (pip install .[export])"
     import logging
@@ -179,8 +179,7 @@ def width_eighth_graph(dest: Path) -> Path | str:
         random_frames,
     )
 
-    torch_mod = __import__("torch")
-    torch_mod.manual_seed(0)
+    torch.manual_seed(0)
     width = 0.125
     scale = load_bundle(DEFAULT_DIR).manifest.architecture.input_scale
     with warnings.catch_warnings():
@@ -237,29 +236,27 @@ def numba_shrink() -> Callable[[np.ndarray, np.ndarray], None] | None:
     return shrink
 
 
-def floor_run(frames: int = 2000, warmup: int = 200, eighth: Path | str | None = None) -> dict:
-    """One interleaved run (see the module docstring). Returns {name: samples in us, ...,
-    'machine': MachineState}."""
+def floor_run(pool, frames: int = 2000, warmup: int = 200, eighth: Path | str | None = None) -> dict:
+    """One interleaved run over ``pool`` (benchmarks.frames.FramePool; see the module
+    docstring). Returns {name: samples in us, ..., 'machine': MachineState}."""
     from tactile_force.edge import ContactGate, GateOptions, OnnxForceModel
     from tactile_force.edge.reading import Flags
     from tactile_force.edge.runtime import ForceRuntime, RuntimeOptions, Sensor
 
-    from .frames import frame_pool
     from .latency import MemorySource
     from .machine import CpuWindow
 
     cv2.setNumThreads(1)
-    pool = frame_pool()
     n, p = warmup + frames, len(pool.rgb)
     gate = ContactGate()
     gate.capture_background(pool.background)
-    bg_small = np.ascontiguousarray(gate.reduce(pool.background[0])).copy()
+    bg_small = gate.reduce(pool.background[0]).copy()
     checkless = CheckLessGate(bg_small, pool.rgb[0].shape)
     plain = ContactGate(GateOptions(trust=False))  # no judging check: difference, fit, blobs
     plain.capture_background(pool.background)
     ref_sess, ref_in = _session(REFERENCE_GRAPH)
     net_sess, net_in = _session(DEFAULT_DIR / "model.onnx")
-    small = [np.ascontiguousarray(gate.reduce(f))[None].copy() for f in pool.rgb]
+    small = [gate.reduce(f)[None].copy() for f in pool.rgb]
     eighth_sess = _session(eighth / "model.onnx") if isinstance(eighth, Path) else None
     rt_gate = ContactGate()
     rt_gate.capture_background(pool.background)
@@ -304,7 +301,7 @@ def floor_run(frames: int = 2000, warmup: int = 200, eighth: Path | str | None =
                 out["runtime glue"][i] = (L.total_ms - L.gate_ms - L.inference_ms) * 1e3
     state = window.stop()
     runtime.close()
-    return {**{k: v[warmup:] for k, v in out.items()}, "machine": state, "check frame": pool.rgb[0]}
+    return {**{k: v[warmup:] for k, v in out.items()}, "machine": state}
 
 
 def floor_rows(run: dict) -> tuple[list[list[object]], list[list[object]]]:
@@ -312,7 +309,7 @@ def floor_rows(run: dict) -> tuple[list[list[object]], list[list[object]]]:
     limit, floor, how the floor is made, shipped (this run), floor below the limit]])."""
     from .stats import percentiles
 
-    p = {k: percentiles(v) for k, v in run.items() if k not in ("machine", "check frame")}
+    p = {k: percentiles(v) for k, v in run.items() if k != "machine"}
     ref = p["reference bare"].p50
     labels = {"reference bare": "reference: bare session, c1733e6 graph, full-resolution input",
               "read frame": "reading the frame at all: one copy of 320x240x3 into a buffer",
@@ -358,14 +355,16 @@ def floor_rows(run: dict) -> tuple[list[list[object]], list[list[object]]]:
 
 def page(argv: list[str], frames: int = 2000) -> str:
     """docs/benchmarks/floors.md."""
+    from .frames import frame_pool
     from .machine import describe_machine, header
     from .stats import markdown_table
 
+    pool = frame_pool()
     with tempfile.TemporaryDirectory() as tmp:
         eighth = width_eighth_graph(Path(tmp))
-        run = floor_run(frames=frames, eighth=eighth)
+        run = floor_run(pool, frames=frames, eighth=eighth)
     rows, goals = floor_rows(run)
-    calls = gate_opencv_calls(__import__("benchmarks.frames", fromlist=["frame_pool"]).frame_pool())
+    calls = gate_opencv_calls(pool)
     costs = call_costs()
     call_rows = [[k, v] for k, v in sorted(calls.items(), key=lambda kv: -kv[1])]
     total_calls = sum(calls.values())
@@ -376,7 +375,7 @@ def page(argv: list[str], frames: int = 2000) -> str:
         notes.append("numba row skipped: numba is not installed (it is not a dependency; `pip install numba` "
                      "to run the experiment).")
     else:
-        frame = run["check frame"]
+        frame = pool.rgb[0]
         got = np.empty((frame.shape[0] // 4, frame.shape[1] // 4, 3), np.uint8)
         compiled(frame, got)
         from tactile_force.edge.reduce import default_reduction, reduce_frames

@@ -419,6 +419,7 @@ class ForceRuntime:
         self._bg_checked: dict[str, np.ndarray] = {}  # per sensor: the given background image checked
         self._pressed: dict[str, str] = {}  # per sensor: why its given background looks pressed ("" = it does not)
         self._judging = EstimateJudge(model)  # range, saturation, out_of_distribution (edge/judging.py)
+        self._interval = usable_interval(getattr(model, "bundle", None))  # every reading's error bar
         _attach(model)  # last: a runtime that failed to build does not count as a user
 
     # -- public ---------------------------------------------------------------------------
@@ -755,15 +756,13 @@ class ForceRuntime:
     def interval(self) -> ForceInterval | None:
         """The bundle's interval record applied to every reading (None: every reading's
         interval is ``unknown``: the manifest has none, or it was fitted for another model)."""
-        if "_interval" not in self.__dict__:
-            self._interval = usable_interval(getattr(self.model, "bundle", None))
         return self._interval
 
     def _bound(self, r: ForceReading) -> None:
         """Set the reading's force_low_n / force_high_n / interval from the bundle's table:
         no_contact -> [0, the gate-closed bound]; saturated -> open above (+inf); an unknown
         bin or no table -> NaN bounds, ``unknown``."""
-        iv = self.__dict__["_interval"] if "_interval" in self.__dict__ else self.interval
+        iv = self._interval
         if iv is None:
             return
         fl = int(r.flags)  # plain int tests: IntFlag operators cost ~1 us each
