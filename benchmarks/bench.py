@@ -177,10 +177,11 @@ def _timing(p) -> Timing:
 
 def overall_verdict(verdicts: Sequence[str]) -> str:
     """PASS when all pass; else OVER_BUDGET when any is over budget; else NO_READINGS when a
-    bundle gave no force on the bench frames; else MACHINE_BUSY."""
+    bundle gave no force on the bench frames; else TOO_FEW_READINGS when a bundle's p99 rests
+    on too few readings; else MACHINE_BUSY."""
     if verdicts and all(v == "PASS" for v in verdicts):
         return "PASS"
-    for v in ("OVER_BUDGET", "NO_READINGS"):
+    for v in ("OVER_BUDGET", "NO_READINGS", "TOO_FEW_READINGS"):
         if v in verdicts:
             return v
     return "MACHINE_BUSY"
@@ -327,6 +328,7 @@ def bench_bundle(path: Path, pool, frames: int = 1000, threads: int = 1, budget_
     from .bundles import ModelConfig
     from .check import JUDGED, judge
     from .latency import LatencyCase, measure
+    from .stats import too_few_for_p99
 
     bundle = load_bundle(path)
     m = bundle.manifest
@@ -343,6 +345,9 @@ def bench_bundle(path: Path, pool, frames: int = 1000, threads: int = 1, budget_
     result, verdict, attempts = judge(once, budget_ms, repeats, pause_s, window, sleep or time.sleep)
     s = result.stages
     verdict_name, note = verdict.name, result.note
+    few = too_few_for_p99(int(s[JUDGED].n))
+    if few is not None:
+        verdict_name, note = "TOO_FEW_READINGS", f"{few}; {note}" if note else few
     opened = re.search(r"gate open on (\d+)/(\d+) frames", note)
     if opened and int(opened.group(1)) < int(opened.group(2)) // 2:
         # most frames gave no force: the times are not the model's; say why instead of judging them
@@ -435,7 +440,8 @@ def run_bench(bundles: Sequence[Path], frames: int = 1000, threads: int = 1, bud
 
 # ----------------------------------------------------------------------------- output
 VERDICT_TEXT = {"PASS": "PASS", "OVER_BUDGET": "over budget", "MACHINE_BUSY": "machine busy (no verdict)",
-                "NO_READINGS": "no force on the bench frames (no verdict)"}
+                "NO_READINGS": "no force on the bench frames (no verdict)",
+                "TOO_FEW_READINGS": "too few readings for a p99 (no verdict)"}
 
 
 def _ms(v: float | None) -> str:
@@ -470,6 +476,8 @@ def text_table(report: BenchReport) -> str:
     for b in report.bundles:
         for i, a in enumerate(b.attempts, 1):
             out.append(f"{b.name} attempt {i}: total p99 {_ms(a.total_p99_ms)} ms; {_state_line(a.machine)}")
+        if b.verdict == "TOO_FEW_READINGS":
+            out.append(f"{b.name}: {b.note}")
     out.append(f"verdict: {VERDICT_TEXT.get(report.verdict, report.verdict)}")
     return "\n".join(out)
 
@@ -534,7 +542,8 @@ def write_json(path: Path, obj: object) -> Path:
 
 
 def write_report(report: BenchReport, out: Path) -> list[Path]:
-    """Write report.json, report.md and pareto.png into ``out`` (made if missing)."""
+    """Write report.json, report.md and pareto.png into the folder ``out`` (made if missing;
+    the CLI passes a hidden staging folder that becomes ``--out`` when all three are written)."""
     out.mkdir(parents=True, exist_ok=True)
     js = write_json(out / REPORT_JSON, report.to_json())
     md = out / REPORT_MD

@@ -25,6 +25,18 @@ class Percentiles:
 
 NAN_PERCENTILES = Percentiles(math.nan, math.nan, math.nan, math.nan, 0)
 
+#: readings a p99 verdict needs at least: the p99 is the value 1 % of readings exceed, so with
+#: fewer than 100 not one reading lies above it and it is only the largest reading seen.
+MIN_P99_READINGS = 100
+
+
+def too_few_for_p99(n: int) -> str | None:
+    """Why ``n`` readings give no p99 verdict (a sentence), or None when they are enough."""
+    if n >= MIN_P99_READINGS:
+        return None
+    return (f"too few readings for a p99 verdict: {n} < {MIN_P99_READINGS} (the p99 is the value 1 % of readings "
+            f"exceed; with fewer than {MIN_P99_READINGS} it is only the largest reading)")
+
 
 def percentiles(samples_ms: Sequence[float] | np.ndarray) -> Percentiles:
     """Percentiles (linear interpolation, numpy's default) of finite samples; NaNs if none."""

@@ -21,8 +21,6 @@ to the same place, or listed by :func:`stale_partials`.
 
 from __future__ import annotations
 
-import ctypes
-import errno
 import hashlib
 import json
 import os
@@ -32,12 +30,12 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
+from .atomic import exchange as _exchange
+from .atomic import fsync_dir as _fsync_dir
 from .errors import BundleError
 from .manifest import Manifest, manifest_from_json
 
 _PID_FILE = ".writer-pid"
-_AT_FDCWD = -100
-_RENAME_EXCHANGE = 2
 
 
 @dataclass
@@ -178,34 +176,6 @@ def _recover(dest: Path) -> None:
         else:
             os.replace(old, dest)
             _fsync_dir(dest.parent)
-
-
-def _fsync_dir(path: Path) -> None:
-    try:
-        fd = os.open(path, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass
-    finally:
-        os.close(fd)
-
-
-def _exchange(a: Path, b: Path) -> bool:
-    """Atomically swap two paths (Linux renameat2); False where unsupported."""
-    try:
-        libc = ctypes.CDLL(None, use_errno=True)
-        fn = libc.renameat2
-    except (OSError, AttributeError):
-        return False
-    if fn(_AT_FDCWD, os.fsencode(a), _AT_FDCWD, os.fsencode(b), _RENAME_EXCHANGE) == 0:
-        return True
-    err = ctypes.get_errno()
-    if err in (errno.ENOSYS, errno.EINVAL, errno.ENOTSUP):
-        return False
-    raise OSError(err, os.strerror(err), str(b))
 
 
 def write_bundle(dest: str | os.PathLike, onnx_bytes: bytes, manifest: Manifest,

@@ -7,14 +7,21 @@ imported, so ``tactile-force run`` never imports torch and ``--help`` is instant
 One error contract for every command: exit 0 success, 1 a check failed (parity, verify,
 budget; :class:`~tactile_force.edge.errors.CheckFailedError`), 2 bad input or usage (any
 other TactileForceError, an OSError on a path the user gave, a missing extra, an argparse
-error), 130 interrupted. Errors are one line; ``--debug`` shows the traceback.
+error), 130 interrupted by SIGINT (Ctrl-C), 143 by SIGTERM. Errors are one line; ``--debug``
+shows the traceback.
+
+Both signals raise :class:`Interrupted` (a ``KeyboardInterrupt``) in the main thread, so every
+verb unwinds through its clean-up (a half-made output is removed, :mod:`.atomic`); a verb that
+catches the interrupt itself still exits 130 / 143, never 0.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import signal
 import sys
+import threading
 
 #: name -> (module, configure function, main function, one-line help)
 COMMANDS: dict[str, tuple[str, str, str, str]] = {
@@ -99,9 +106,48 @@ def _exit_code(exc: BaseException) -> tuple[int, str]:
                "(please report it; rerun with --debug for the traceback)")
 
 
+class Interrupted(KeyboardInterrupt):
+    """SIGINT or SIGTERM arrived while a command ran; ``signum`` says which."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+class _Signals:
+    """SIGINT and SIGTERM raise :class:`Interrupted` while a command runs (main thread only);
+    ``received`` remembers the first, so a verb that swallows it cannot exit 0."""
+
+    def __init__(self) -> None:
+        self.received: int | None = None
+        self._old: dict[int, object] = {}
+
+    def __enter__(self) -> _Signals:
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                self._old[sig] = signal.signal(sig, self._handle)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        for sig, old in self._old.items():
+            signal.signal(sig, old)  # type: ignore[arg-type]
+        self._old.clear()
+
+    def _handle(self, signum: int, frame: object) -> None:
+        if self.received is None:
+            self.received = signum
+        raise Interrupted(signum)
+
+    def code(self, exc: BaseException | None = None) -> int:
+        """128 + the signal's number (130 SIGINT, 143 SIGTERM)."""
+        signum = exc.signum if isinstance(exc, Interrupted) else (self.received or signal.SIGINT)
+        return 128 + int(signum)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run one subcommand. Exit codes: 0 success, 1 a check failed, 2 bad input or usage,
-    130 interrupted. ``--debug`` (anywhere, or TACTILE_FORCE_DEBUG=1) shows tracebacks."""
+    130 interrupted (SIGINT), 143 terminated (SIGTERM). ``--debug`` (anywhere, or
+    TACTILE_FORCE_DEBUG=1) shows tracebacks."""
     import os
 
     argv = list(sys.argv[1:] if argv is None else argv)
@@ -139,17 +185,25 @@ def main(argv: list[str] | None = None) -> int:
         args = parser.parse_args(argv[1:])
     except SystemExit as exc:  # usage errors (2) and --help (0), also when called in-process
         return exc.code if isinstance(exc.code, int) else 2
+    signals = _Signals()
     try:
-        return int(getattr(module, main_name)(args) or 0)
-    except KeyboardInterrupt:
-        print(f"tactile-force {name}: interrupted", file=sys.stderr)
-        return 130
+        with signals:
+            code = int(getattr(module, main_name)(args) or 0)
+    except KeyboardInterrupt as exc:
+        print(f"tactile-force {name}: interrupted; nothing half-made was kept", file=sys.stderr)
+        return signals.code(exc)
     except Exception as exc:  # the error contract: one line, no traceback (--debug shows it)
+        if signals.received is not None:  # an error raised while unwinding from a signal
+            print(f"tactile-force {name}: interrupted ({type(exc).__name__} while stopping)", file=sys.stderr)
+            return signals.code()
         if debug:
             raise
         code, message = _exit_code(exc)
         print(f"tactile-force {name}: {message}", file=sys.stderr)
         return code
+    if signals.received is not None:  # the verb caught the interrupt itself: never a success
+        return signals.code()
+    return code
 
 
 if __name__ == "__main__":  # pragma: no cover

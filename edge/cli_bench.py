@@ -2,7 +2,9 @@
 
 Core install only (no torch): the work is :mod:`tactile_force.benchmarks.bench`. Exit codes
 follow :mod:`tactile_force.edge.cli`: 0 every bundle within budget, 1 any over budget or no
-verdict (machine busy), 2 bad input (a missing bundle, an unusable --data / --background).
+verdict (machine busy, too few readings), 2 bad input (a missing bundle, an unusable --data /
+--background, an --out that exists without --force or is an input), 130 / 143 interrupted
+(``--out`` left as it was).
 """
 
 from __future__ import annotations
@@ -43,7 +45,8 @@ def configure(p: argparse.ArgumentParser) -> None:
                    help="attempts at most; a new one only after one over budget on a busy machine (default 3)")
     p.add_argument("--pause-s", type=non_negative_int, default=30, help="seconds before a repeat (default 30)")
     p.add_argument("--out", type=Path, default=Path("tactile_force_bench"),
-                   help="output folder (default tactile_force_bench)")
+                   help="output folder (default tactile_force_bench); written whole when the bench ends")
+    p.add_argument("--force", action="store_true", help="replace --out when it holds an earlier bench result")
 
 
 def _check_args(args: argparse.Namespace) -> list[Path]:
@@ -64,14 +67,21 @@ def _check_args(args: argparse.Namespace) -> list[Path]:
                               "forces/force_N.txt)")
     if args.background is not None and not args.background.exists():
         raise BenchInputError(f"--background {args.background}: not found (expected a no-contact image)")
-    if args.out.exists() and not args.out.is_dir():
-        raise BenchInputError(f"--out {args.out}: is a file; expected an output folder")
+    from .output_guard import OutputKind, check_output
+
+    # --out is bench's own result folder: never an input, replaced only with --force and only when
+    # it is an earlier bench result holding nothing else
+    check_output(args.out, [("--bundle", b) for b in bundles] + [("--data", args.data),
+                                                                  ("--background", args.background)],
+                 force=args.force, kind=OutputKind.FOLDER, verb="bench")
     return bundles
 
 
 def main(args: argparse.Namespace) -> int:
     from tactile_force.benchmarks.bench import run_bench, text_table, write_report
+    from tactile_force.benchmarks.stats import MIN_P99_READINGS
 
+    from .atomic import staged_folder
     from .logs import quiet_loggers
 
     bundles = _check_args(args)
@@ -81,11 +91,15 @@ def main(args: argparse.Namespace) -> int:
         if len(sys.argv) > 1 and sys.argv[1] == "bench" else "tactile-force bench"
     print(f"bench: {len(bundles)} bundle(s), {args.frames} frames each, {args.threads} thread(s), "
           f"budget {args.budget_ms:g} ms" + (f", error on {args.data}" if args.data else ""), file=sys.stderr)
+    if args.frames < MIN_P99_READINGS:
+        print(f"bench: --frames {args.frames} is below the {MIN_P99_READINGS} readings a p99 verdict needs: the "
+              "figures are measured, the verdict will be 'too few readings'", file=sys.stderr)
     with quiet_loggers("tactile_force.edge.data_stats"):
         report = run_bench(bundles, frames=args.frames, threads=args.threads, budget_ms=args.budget_ms,
                            data=args.data, background=args.background, repeats=args.repeats,
                            pause_s=float(args.pause_s), command=command.strip())
-    paths = write_report(report, args.out)
+    with staged_folder(args.out, "bench") as tmp:
+        names = [p.name for p in write_report(report, tmp)]
     print(text_table(report))
-    print("wrote " + ", ".join(str(p) for p in paths))
+    print("wrote " + ", ".join(str(args.out / n) for n in names))
     return 0 if report.passed else 1

@@ -16,7 +16,8 @@ Every command that reads inputs and writes an output (``export``, ``quantize``, 
   (opening a FIFO blocks until someone writes to it).
 
 Errors are :class:`OutputRefused` (a :class:`~tactile_force.edge.errors.TactileForceError`:
-the CLI exits 2) naming the flag, the path and what was expected.
+the CLI exits 2) naming the flag, the path and what was expected. Writing the output itself
+in one step (a hidden sibling renamed into place) is :mod:`.atomic`.
 """
 
 from __future__ import annotations
@@ -103,7 +104,7 @@ def _within(inner: Path, outer: Path) -> bool:
 
 def check_output(out: str | os.PathLike, inputs: Iterable[InputPath | tuple[str, str | os.PathLike | None]],
                  *, force: bool = False, kind: OutputKind = OutputKind.FILE, flag: str = "--out",
-                 allow_existing: bool = False) -> Path:
+                 allow_existing: bool = False, verb: str | None = None) -> Path:
     """Refuse an output that would destroy an input or replace something unasked.
 
     Parameters
@@ -115,6 +116,9 @@ def check_output(out: str | os.PathLike, inputs: Iterable[InputPath | tuple[str,
     flag : the flag that gave ``out``, for messages.
     allow_existing : the verb adds to an existing output itself (``compress`` resumes from its
         ``--out``): an existing folder is not refused, inputs still are.
+    verb : the command that writes a *folder* of results (``bench``, ``study``, ...): with
+        ``--force`` an existing folder is replaced only when it is that verb's own earlier
+        result and holds no other file (:func:`~tactile_force.edge.atomic.foreign_files`).
 
     Returns
     -------
@@ -158,6 +162,14 @@ def check_output(out: str | os.PathLike, inputs: Iterable[InputPath | tuple[str,
         return given
     if not force:
         raise OutputRefused(f"{flag} {given}: already exists; pass --force to replace it, or give a new folder")
+    if verb is not None:
+        from .atomic import foreign_files
+
+        foreign = foreign_files(given, verb)
+        if foreign:
+            shown = ", ".join(foreign[:3]) + (f" and {len(foreign) - 3} more" if len(foreign) > 3 else "")
+            raise OutputRefused(f"{flag} {given}: holds files that 'tactile-force {verb}' did not write ({shown}); "
+                                "--force replaces only an earlier result of the same command: expected a new folder")
     if kind is OutputKind.BUNDLE:
         entries = [e.name for e in given.iterdir()]
         if entries and "model.json" not in entries:

@@ -247,7 +247,8 @@ def error_vs_latency(points: Sequence[ParetoPoint], budget_ms: float | None, pat
     Parameters
     ----------
     points : sequence of ParetoPoint
-        The models; those without an error are drawn on the bottom axis as crosses.
+        The models; those without an error are drawn on the bottom axis as crosses, those
+        without a finite p99 are named below the legend.
     budget_ms : float, optional
         The p99 budget in ms (drawn when given).
     path : path
@@ -263,8 +264,10 @@ def error_vs_latency(points: Sequence[ParetoPoint], budget_ms: float | None, pat
     Path
         ``path``.
     """
-    xs = [p.p99_ms for p in points] + ([budget_ms] if budget_ms is not None else [])
-    ys = [p.error for p in points if p.error is not None]
+    unmeasured = [str(i + 1) if numbered else p.label for i, p in enumerate(points)
+                  if not math.isfinite(p.p99_ms)]  # no latency: named, not drawn
+    xs = [p.p99_ms for p in points if math.isfinite(p.p99_ms)] + ([budget_ms] if budget_ms is not None else [])
+    ys = [p.error for p in points if p.error is not None and math.isfinite(p.p99_ms)]
     c = Canvas(_range(xs, floor=0.0), _range(ys, floor=0.0) if ys else (0.0, 1.0), "p99 latency (ms)", ylabel,
                size=(900, 420))
     if budget_ms is not None:
@@ -273,6 +276,8 @@ def error_vs_latency(points: Sequence[ParetoPoint], budget_ms: float | None, pat
     c.line([points[i].p99_ms for i in front], [points[i].error or 0.0 for i in front], GREEN, 1)
     for i, p in enumerate(points):
         label = str(i + 1) if numbered else p.label
+        if not math.isfinite(p.p99_ms):
+            continue
         if p.error is None:
             px, py = c.xy(p.p99_ms, c.ylim[0])
             c.cv2.drawMarker(c.img, (px, py - 6), GREY, c.cv2.MARKER_TILTED_CROSS, 10, 2)
@@ -288,6 +293,8 @@ def error_vs_latency(points: Sequence[ParetoPoint], budget_ms: float | None, pat
     if any(p.error is None for p in points):
         legend += "   cross: no error"
     c.legend(legend)
+    if unmeasured:
+        c.legend("not measured: " + ", ".join(unmeasured))
     return c.save(path)
 
 

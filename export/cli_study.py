@@ -30,7 +30,9 @@ def configure(p: argparse.ArgumentParser) -> None:
                    help="labelled frames in the authors' layout (images/N.png + forces/force_N.txt): the error")
     p.add_argument("--calib", type=Path, help="int8 calibration frames (default: --data itself, noted as such)")
     p.add_argument("--background", type=Path, help="no-contact image of --data's sensor (else learnt, as 'run')")
-    p.add_argument("--out", type=Path, default=Path("tactile_force_study"), help="output folder")
+    p.add_argument("--out", type=Path, default=Path("tactile_force_study"),
+                   help="output folder (default tactile_force_study); written whole when the study ends")
+    p.add_argument("--force", action="store_true", help="replace --out when it holds an earlier study result")
     p.add_argument("--budget-ms", type=positive_float, default=1.0, help="p99 budget for the recommendation (ms)")
     p.add_argument("--threads", type=positive_int, default=1, help="ONNX Runtime / OpenCV threads (default 1)")
     p.add_argument("--frames", type=positive_int, default=500, help="latency readings per configuration")
@@ -57,22 +59,32 @@ def main(args: argparse.Namespace) -> int:
                              "forces/force_N.txt)")
     if args.background is not None and not args.background.is_file():
         raise StudyError(f"--background {args.background}: not found (expected a no-contact image)")
-    if args.out.exists() and not args.out.is_dir():
-        raise StudyError(f"--out {args.out}: is a file; expected an output folder")
+    from tactile_force.edge.atomic import staged_folder
+    from tactile_force.edge.output_guard import OutputKind, check_output
+
+    # --out is study's own result folder: never an input, replaced only with --force and only
+    # when it is an earlier study result holding nothing else
+    check_output(args.out, [("source", args.source), ("--data", args.data), ("--calib", args.calib),
+                            ("--background", args.background)],
+                 force=args.force, kind=OutputKind.FOLDER, verb="study")
     # one replay per configuration: the gate's and data statistics' warnings would repeat for each
     command = "tactile-force study " + " ".join(shlex.quote(a) for a in sys.argv[2:]) \
         if len(sys.argv) > 1 and sys.argv[1] == "study" else "tactile-force study"
-    args.out.mkdir(parents=True, exist_ok=True)
-    fp32 = prepare_source(args.source, args.out / "bundles", args.variant, args.width, args.input_scale,
-                          parity_data=args.data)
     o = StudyOptions(budget_ms=args.budget_ms, threads=args.threads, frames=args.frames, quick=args.quick,
                      max_configs=args.max_configs, sensitivity_nodes=args.sensitivity_nodes,
                      max_calibration_frames=args.calib_frames, keep_bundles="all" if args.keep_all else "pareto")
+    from tactile_force.benchmarks.stats import MIN_P99_READINGS
     from tactile_force.edge.logs import quiet_loggers
 
-    with quiet_loggers("tactile_force.edge.data_stats", "tactile_force.edge.gate", "tactile_force.edge.runtime"):
-        report = run_study(fp32, args.data, args.out, o, calibration=args.calib, background=args.background,
-                           command=command.strip(), log=lambda s: print(s, file=sys.stderr))
+    if args.frames < MIN_P99_READINGS:
+        print(f"study: --frames {args.frames} is below the {MIN_P99_READINGS} readings a p99 needs: the figures are "
+              "measured, no configuration will be recommended", file=sys.stderr)
+    with staged_folder(args.out, "study") as tmp:
+        fp32 = prepare_source(args.source, tmp / "bundles", args.variant, args.width, args.input_scale,
+                              parity_data=args.data)
+        with quiet_loggers("tactile_force.edge.data_stats", "tactile_force.edge.gate", "tactile_force.edge.runtime"):
+            report = run_study(fp32, args.data, tmp, o, calibration=args.calib, background=args.background,
+                               command=command.strip(), log=lambda s: print(s, file=sys.stderr), publish_as=args.out)
     head, rows = table(report)
     widths = [max(len(h), *(len(r[i]) for r in rows)) for i, h in enumerate(head)]
     print("  ".join(h.ljust(w) for h, w in zip(head, widths)))
@@ -80,7 +92,8 @@ def main(args: argparse.Namespace) -> int:
         print("  ".join(c.ljust(w) for c, w in zip(r, widths)))
     for s in report.sensitivity[:5]:
         print(f"sensitivity: keeping {s.node} float buys back {100 * s.bought_back:+.0f} % of the int8 error vs fp32")
-    print(f"recommended (most accurate with p99 <= {args.budget_ms:g} ms): {report.recommended or 'none'}")
+    why = f" ({report.note})" if report.note else ""
+    print(f"recommended (most accurate with p99 <= {args.budget_ms:g} ms): {report.recommended or 'none'}{why}")
     print(f"wrote {args.out / 'study.md'}, {args.out / 'study.json'}, {args.out / 'pareto.png'}; took "
           f"{report.seconds:.0f} s")
     return 0 if report.recommended else 1

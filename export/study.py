@@ -44,6 +44,8 @@ if TYPE_CHECKING:
     from .calibration import CalibrationData
 
 SCHEMA = "tactile-force-study/1"
+#: labelled frames a study needs at least (int8 static calibration needs as many; fewer give no error figure)
+MIN_STUDY_FRAMES = 10
 STUDY_JSON, STUDY_MD, PLOT_PNG = "study.json", "study.md", "pareto.png"
 
 
@@ -123,7 +125,8 @@ class StudyReport:
     """What ``tactile-force study`` measured (study.json).
 
     configurations: fp32 first; recommended: the name of the most accurate configuration
-    (lowest RE vs truth) whose p99 is within ``budget_ms``, None when none is."""
+    (lowest RE vs truth) whose p99 is within ``budget_ms``, None when none is (``note`` says
+    why when that is not the latency itself, e.g. too few readings for a p99)."""
 
     schema: str
     source: str
@@ -141,6 +144,7 @@ class StudyReport:
     recommended: str | None
     seconds: float
     command: str = ""
+    note: str = ""
 
     def to_json(self) -> dict:
         from tactile_force.edge.typed_json import to_json
@@ -288,7 +292,8 @@ def prepare_source(source: Path, work: Path, variant: str | None = None, width: 
 
 def run_study(fp32: Path, data: Path, out: Path, options: StudyOptions | None = None,
               calibration: str | os.PathLike | CalibrationData | None = None, background: Path | None = None,
-              command: str = "", pool=None, log: Callable[[str], None] | None = None) -> StudyReport:
+              command: str = "", pool=None, log: Callable[[str], None] | None = None,
+              publish_as: Path | None = None) -> StudyReport:
     """Quantize ``fp32`` every way in the grid, measure each configuration, write the study.
 
     Parameters
@@ -309,6 +314,9 @@ def run_study(fp32: Path, data: Path, out: Path, options: StudyOptions | None = 
         The command line, recorded.
     pool : FramePool, optional
         Latency frames (default :func:`tactile_force.benchmarks.bench.contact_frames`).
+    publish_as : Path, optional
+        Where ``out`` will be moved when the study ends (a staging folder is written): the
+        report records bundle paths under it.
 
     Returns
     -------
@@ -336,7 +344,8 @@ def run_study(fp32: Path, data: Path, out: Path, options: StudyOptions | None = 
     if isinstance(calibration, CalibrationData):
         calib = calibration.subset(o.max_calibration_frames)
     else:
-        calib = CalibrationData.from_path(calibration or data, variant, limit=o.max_calibration_frames)
+        calib = CalibrationData.from_path(calibration or data, variant, limit=o.max_calibration_frames,
+                                          min_frames=MIN_STUDY_FRAMES)
     same = calibration is None or (not isinstance(calibration, CalibrationData)
                                    and Path(calibration).resolve() == Path(data).resolve())
     pool = pool if pool is not None else contact_frames()
@@ -349,6 +358,10 @@ def run_study(fp32: Path, data: Path, out: Path, options: StudyOptions | None = 
         configs = configs[:max(0, o.max_configs)]
 
     fp32_readings = replay_readings(fp32, data, background, o.threads)
+    labelled = sum(1 for r in fp32_readings if getattr(r, "truth_n", None) is not None)
+    if labelled < MIN_STUDY_FRAMES:
+        raise StudyError(f"--data {data}: {labelled} labelled frame(s); a study needs at least {MIN_STUDY_FRAMES} "
+                         "(a few hundred covering the force range give a trustworthy error)")
     fp32_frames = _by_frame(fp32_readings)
     results = [Configuration("fp32", Settings("fp32"), _errors(fp32_readings, fp32_frames, data, background),
                              _latency(fp32, pool, o), bundle=str(fp32), note="the source")]
@@ -422,28 +435,44 @@ def run_study(fp32: Path, data: Path, out: Path, options: StudyOptions | None = 
                        c.error.re_mean if c.error is not None else None) for c in results]
     for i in pareto_front(pts):
         results[i].pareto = True
+    from tactile_force.benchmarks.stats import too_few_for_p99
+
+    few = too_few_for_p99(min((c.latency_ms.n for c in results), default=0))
     for c in results:
-        c.within_budget = c.latency_ms.p99 is not None and c.latency_ms.p99 <= o.budget_ms
+        c.within_budget = (few is None and c.latency_ms.p99 is not None and c.latency_ms.p99 <= o.budget_ms)
     fits = [(c.error.re_mean, i) for i, c in enumerate(results)
             if c.within_budget and c.error is not None and c.error.re_mean is not None]
     recommended = results[min(fits)[1]].name if fits else None
+    def recorded(p: Path) -> str:
+        """``p``'s path once ``out`` is published as ``publish_as``."""
+        if publish_as is None:
+            return str(p)
+        try:
+            return str(Path(publish_as) / Path(p).relative_to(out))
+        except ValueError:
+            return str(p)
+
     for c in results:
         p = paths.get(c.name)
         keep = c.pareto or c.name == recommended or o.keep_bundles == "all"
-        if p is None or p == fp32:
+        if p is None:
+            continue
+        if p == fp32:
+            c.bundle = recorded(p)
             continue
         if keep:
-            c.bundle = str(p)
+            c.bundle = recorded(p)
         else:
             shutil.rmtree(p, ignore_errors=True)
     m = describe_machine()
     report = StudyReport(
-        schema=SCHEMA, source=str(fp32), variant=variant, data=str(data), calibration=calib.source, same_frames=same,
+        schema=SCHEMA, source=recorded(fp32), variant=variant, data=str(data), calibration=calib.source,
+        same_frames=same,
         budget_ms=float(o.budget_ms), threads=o.threads, frames=o.frames,
         machine={"cpu": m.cpu, "cores": m.cores, "ram_gib": _f(m.ram_gib), "os": m.os, "python": m.python,
                  "versions": m.versions, "background_load": m.background_load},
         configurations=results, sensitivity=sens, sensitivity_base=base_name if sens else None,
-        recommended=recommended, seconds=round(time.perf_counter() - t0, 1), command=command)
+        recommended=recommended, seconds=round(time.perf_counter() - t0, 1), command=command, note=few or "")
     write_study(report, out)
     return report
 
@@ -502,8 +531,9 @@ def markdown(report: StudyReport, title: str = "Quantization study") -> str:
              "| " + " | ".join(head) + " |", "|" + "|".join("---" for _ in head) + "|"]
     lines += ["| " + " | ".join(r) + " |" for r in rows]
     lines += ["", "Recommended (most accurate within the budget): "
-              + (f"**{report.recommended}**" if report.recommended else "none - no configuration's p99 fits "
-                 f"{report.budget_ms:g} ms on this host")]
+              + (f"**{report.recommended}**" if report.recommended else
+                 f"none - {report.note}" if report.note else
+                 f"none - no configuration's p99 fits {report.budget_ms:g} ms on this host")]
     kept = [c for c in report.configurations if c.bundle]
     if kept:
         lines += ["", "Bundles kept (Pareto front and the recommendation): "

@@ -27,7 +27,7 @@ from tactile_force.benchmarks.machine import MachineState
 from tactile_force.edge.cli import main
 from tactile_force.edge.scene import default_bundle_path
 
-FAST = ["--frames", "20", "--repeats", "1"]
+FAST = ["--frames", "100", "--repeats", "1"]
 
 
 @pytest.fixture(scope="module")
@@ -59,7 +59,7 @@ def test_report_json_is_the_documented_contract(tmp_path, capsys):
     assert b["error"] is None and b["variant"] == "rgbmod" and b["precision"] == "int8-static"
     assert Path(b["path"]) == default_bundle_path()
     report = read_report(out / REPORT_JSON)  # parses into the typed dataclasses
-    assert isinstance(report, BenchReport) and report.bundles[0].total_ms.n == 20
+    assert isinstance(report, BenchReport) and report.bundles[0].total_ms.n == 100
     assert (rc == 0) == report.passed
     assert (out / "report.md").read_text().startswith("# tactile-force bench")
     import cv2
@@ -190,3 +190,78 @@ def test_overall_verdict():
     assert overall_verdict(["PASS", "MACHINE_BUSY"]) == "MACHINE_BUSY"
     assert overall_verdict(["NO_READINGS", "MACHINE_BUSY"]) == "NO_READINGS"
     assert overall_verdict([]) == "MACHINE_BUSY"
+
+
+def test_too_few_readings_give_no_verdict(tmp_path, capsys):
+    out = tmp_path / "b"
+    rc = main(["bench", "--frames", "5", "--repeats", "1", "--bundle", str(default_bundle_path()),
+               "--budget-ms", "1000", "--out", str(out)])
+    assert rc == 1  # no verdict: never PASS from 5 readings, however fast
+    r = read_report(out / REPORT_JSON)
+    assert r.verdict == "TOO_FEW_READINGS" and r.bundles[0].verdict == "TOO_FEW_READINGS"
+    assert "too few readings" in r.bundles[0].note and "too few readings" in (out / "report.md").read_text()
+    assert "too few readings" in capsys.readouterr().out
+
+
+def _user_folder(path: Path) -> Path:
+    path.mkdir(parents=True)
+    (path / "report.md").write_text("my own notes\n")
+    (path / "report.json").write_text("{}\n")
+    return path
+
+
+def test_an_existing_out_is_never_replaced_without_force(tmp_path, capsys):
+    out = _user_folder(tmp_path / "mine")
+    assert main(["bench", *FAST, "--bundle", str(default_bundle_path()), "--out", str(out)]) == 2
+    assert (out / "report.md").read_text() == "my own notes\n"
+    assert "--force" in capsys.readouterr().err
+    # --force replaces only an earlier bench result, never a folder of the user's files
+    assert main(["bench", *FAST, "--bundle", str(default_bundle_path()), "--out", str(out), "--force"]) == 2
+    assert (out / "report.md").read_text() == "my own notes\n"
+
+
+def test_force_replaces_an_earlier_result_but_not_a_file_added_to_it(tmp_path):
+    out = tmp_path / "b"
+    args = ["bench", *FAST, "--bundle", str(default_bundle_path()), "--budget-ms", "1000", "--out", str(out)]
+    assert main(args) in (0, 1)
+    first = (out / REPORT_JSON).read_text()
+    assert main([*args, "--force"]) in (0, 1)
+    assert (out / REPORT_JSON).read_text() != first  # a new measurement, published whole
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no staging left behind
+    (out / "NOTES.txt").write_text("keep me")
+    assert main([*args, "--force"]) == 2
+    assert (out / "NOTES.txt").read_text() == "keep me"
+
+
+@pytest.mark.parametrize("where", ["data", "bundle"])
+def test_out_inside_an_input_is_refused(tmp_path, capsys, synth_dir, where):
+    import shutil
+
+    bundle = tmp_path / "bundle"
+    shutil.copytree(default_bundle_path(), bundle)
+    inside = (synth_dir if where == "data" else bundle) / "bench_out"
+    before = sorted(p.name for p in inside.parent.iterdir())
+    rc = main(["bench", *FAST, "--bundle", str(bundle), "--data", str(synth_dir), "--out", str(inside), "--force"])
+    assert rc == 2 and "input" in capsys.readouterr().err
+    assert sorted(p.name for p in inside.parent.iterdir()) == before
+
+
+def test_interrupted_bench_exits_130_and_leaves_no_output(tmp_path):
+    """SIGINT while measuring: exit 130 (143 for SIGTERM), --out not made, no staging left."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    for sig, code in ((signal.SIGINT, 130), (signal.SIGTERM, 143)):
+        out = tmp_path / f"b{int(sig)}"
+        proc = subprocess.Popen([sys.executable, "-m", "tactile_force.edge.cli", "bench", "--frames", "100000",
+                                 "--repeats", "1", "--bundle", str(default_bundle_path()), "--out", str(out)],
+                                stderr=subprocess.PIPE, text=True)
+        assert proc.stderr is not None and proc.stderr.readline().startswith("bench:")  # measuring starts
+        time.sleep(1.5)
+        proc.send_signal(sig)
+        _, err = proc.communicate(timeout=120)
+        assert proc.returncode == code, err
+        assert "Traceback" not in err and not out.exists()
+        assert not [p for p in tmp_path.iterdir() if p.name.startswith(f".{out.name}.")]

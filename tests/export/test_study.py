@@ -35,7 +35,7 @@ def test_study_on_a_tiny_model_writes_the_contract(tmp_path, capsys, tiny):
     bundle, data = tiny
     out = tmp_path / "study"
     rc = main(["study", str(bundle), "--data", str(data), "--out", str(out), "--quick", "--max-configs", "2",
-               "--sensitivity-nodes", "2", "--frames", "10", "--budget-ms", "1000"])
+               "--sensitivity-nodes", "2", "--frames", "100", "--budget-ms", "1000"])
     assert rc == 0, capsys.readouterr().err
     raw = json.loads((out / "study.json").read_text())
     configs = raw["configurations"]
@@ -108,3 +108,81 @@ def test_study_without_torch_names_the_extra():
             "from tactile_force.edge.cli import main; sys.exit(main(['study', '--help']))")
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert run.returncode == 2 and "'export' extra" in run.stderr and "Traceback" not in run.stderr
+
+
+QUICK = ["--quick", "--max-configs", "1", "--sensitivity-nodes", "0"]
+
+
+def test_a_second_study_never_deletes_the_first(tmp_path, capsys, tiny):
+    bundle, data = tiny
+    out = tmp_path / "s"
+    assert main(["study", str(bundle), "--data", str(data), "--out", str(out), *QUICK, "--frames", "5"]) == 1
+    first = sorted(str(p.relative_to(out)) for p in out.rglob("*"))
+    assert any(p.startswith("bundles") for p in first) or (out / "study.json").is_file()
+    # again without --force: refused before any work, the first study intact
+    assert main(["study", str(bundle), "--data", str(data), "--out", str(out), *QUICK, "--frames", "5"]) == 2
+    assert "--force" in capsys.readouterr().err
+    assert sorted(str(p.relative_to(out)) for p in out.rglob("*")) == first
+    # the user's own file inside the earlier result: --force refuses to delete it
+    kept = next(p for p in out.rglob("*") if p.is_dir())
+    (kept / "NOTES.txt").write_text("mine")
+    assert main(["study", str(bundle), "--data", str(data), "--out", str(out), *QUICK, "--frames", "5",
+                 "--force"]) == 2
+    assert (kept / "NOTES.txt").read_text() == "mine"
+
+
+@pytest.mark.parametrize("where", ["source", "inside-source", "data"])
+def test_out_that_is_or_lies_in_an_input_is_refused(tmp_path, capsys, tiny, where):
+    bundle, data = tiny
+    out = {"source": bundle, "inside-source": bundle / "study", "data": data / "study"}[where]
+    before = sorted(p.name for p in out.parent.iterdir())
+    rc = main(["study", str(bundle), "--data", str(data), "--out", str(out), *QUICK, "--frames", "5", "--force"])
+    err = capsys.readouterr().err
+    assert rc == 2 and "input" in err and "internal error" not in err
+    assert sorted(p.name for p in out.parent.iterdir()) == before
+
+
+def test_too_few_readings_recommend_nothing(tmp_path, capsys, tiny):
+    bundle, data = tiny
+    out = tmp_path / "s"
+    rc = main(["study", str(bundle), "--data", str(data), "--out", str(out), *QUICK, "--frames", "5",
+               "--budget-ms", "1000"])
+    assert rc == 1
+    report = read_study(out / "study.json")
+    assert report.recommended is None and "too few readings" in report.note
+    assert not any(c.within_budget for c in report.configurations)
+    assert "too few readings" in (out / "study.md").read_text()
+    assert "too few readings" in capsys.readouterr().out
+
+
+def test_too_few_labelled_frames_is_bad_input(tmp_path, capsys, tiny):
+    bundle, _ = tiny
+    data = tmp_path / "two"
+    assert main(["synth", "--out", str(data), "--n", "2", "--seed", "1", "--no-progress"]) == 0
+    capsys.readouterr()
+    rc = main(["study", str(bundle), "--data", str(data), "--out", str(tmp_path / "s"), *QUICK, "--frames", "5"])
+    err = capsys.readouterr().err
+    assert rc == 2 and "at least 10" in err and "internal error" not in err
+    assert not (tmp_path / "s").exists()
+
+
+@pytest.mark.parametrize("sig", ["SIGINT", "SIGTERM"])
+def test_an_interrupted_study_leaves_nothing_half_made(tmp_path, tiny, sig):
+    import signal
+    import time
+
+    bundle, data = tiny
+    out = tmp_path / "s"
+    proc = subprocess.Popen([sys.executable, "-m", "tactile_force.edge.cli", "study", str(bundle), "--data", str(data),
+                             "--out", str(out), "--frames", "100", "--sensitivity-nodes", "0"],
+                            stderr=subprocess.PIPE, text=True)
+    assert proc.stderr is not None
+    for line in proc.stderr:  # the first configuration is measured: bundles are being written
+        if line.startswith("fp32:"):
+            break
+    time.sleep(1.0)
+    proc.send_signal(getattr(signal, sig))
+    _, err = proc.communicate(timeout=300)
+    assert proc.returncode == (130 if sig == "SIGINT" else 143), err
+    assert "Traceback" not in err
+    assert not out.exists() and not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
