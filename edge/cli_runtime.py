@@ -261,16 +261,23 @@ def _run_scene(args: argparse.Namespace):
     return scene
 
 
-def _guard_scene_outputs(scene, scene_file: str, force: bool) -> None:
-    """The output guard for a scene file's file outputs (csv, jsonl, mcap): an existing file
-    needs ``--force``, and no output may be or lie inside one of the scene's inputs (the scene
-    file, its bundles, replay folders, backgrounds)."""
-    from .output_guard import OutputKind, check_output
-
+def scene_inputs(scene, scene_file: str | None) -> list[tuple[str, str | os.PathLike | None]]:
+    """Every path a scene reads, as (what gave it, path): the scene file, its bundles, depth
+    mapping, replay folders and backgrounds. No output may be, hold or lie inside one of them."""
     inputs: list[tuple[str, str | os.PathLike | None]] = [("--scene", scene_file)]
     inputs += [("bundle", b) for b in scene.bundles if str(b) != "default"]
+    inputs.append(("depth mapping", getattr(scene.depth, "mapping", None)))
     for s in scene.sensors:
         inputs += [(f"sensor {s.name} path", s.path), (f"sensor {s.name} background", s.background)]
+    return inputs
+
+
+def _guard_scene_outputs(scene, scene_file: str, force: bool) -> None:
+    """The output guard for a scene file's file outputs (csv, jsonl, mcap): an existing file
+    needs ``--force``, and no output may be or lie inside one of the scene's inputs."""
+    from .output_guard import OutputKind, check_output
+
+    inputs = scene_inputs(scene, scene_file)
     for k, o in enumerate(scene.outputs):
         if o.path is not None and o.kind in ("csv", "jsonl", "mcap"):
             check_output(o.path, inputs, force=force, kind=OutputKind.FILE, flag=f"{scene_file}: output[{k}].path")
@@ -303,7 +310,9 @@ def main_run(args: argparse.Namespace) -> int:
     if args.save_scene:
         from .output_guard import OutputKind, check_output
 
-        check_output(args.save_scene, [("--scene", args.scene), ("--source", args.source)],
+        inputs = [*scene_inputs(scene, args.scene), ("--source", args.source), ("--bundle", args.bundle),
+                  ("--background", args.background), ("--depth-mapping", getattr(args, "depth_mapping", None))]
+        check_output(args.save_scene, [(f, p) for f, p in inputs if p not in (None, "default")],
                      force=getattr(args, "force", False), kind=OutputKind.FILE, flag="--save-scene")
         print(f"wrote scene {save_scene(scene, args.save_scene)}", file=sys.stderr)
     built = build_scene(scene, warn=lambda m: print(f"\nwarning: {m}", file=sys.stderr))

@@ -68,12 +68,15 @@ def scene_to_toml(scene: Scene) -> str:
 
 
 def save_scene(scene: Scene, path: str | os.PathLike) -> Path:
-    """Write :func:`scene_to_toml` to ``path`` (relative to the working directory)."""
+    """Write :func:`scene_to_toml` to ``path`` (relative to the working directory), in one step
+    (a reader never sees half a file; an interrupted write leaves ``path`` as it was)."""
     p = _out_path(str(path))
     if problem := output_problem(p):
         raise SceneError(f"--save-scene: {problem}")
-    p.parent.mkdir(parents=True, exist_ok=True)
-    p.write_text(scene_to_toml(scene))
+    from ..atomic import staged_file
+
+    with staged_file(p) as tmp:
+        tmp.write_text(scene_to_toml(scene))
     return p
 
 

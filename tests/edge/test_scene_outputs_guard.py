@@ -51,3 +51,29 @@ def test_scene_output_never_replaces_the_scene_file(tmp_path: Path) -> None:
     assert r.returncode == 2, r.stderr
     assert "is the input --scene" in r.stderr
     assert scene.read_text() == before
+
+
+def test_save_scene_never_replaces_an_input(tmp_path: Path) -> None:
+    """--save-scene onto any input of the run (the background image, the bundle's files, the
+    replay folder's frames) is refused, --force included, and the input is left as it was."""
+    import shutil
+
+    import cv2
+    import numpy as np
+    from tactile_force.edge import default_bundle_path
+
+    replay = tmp_path / "replay"
+    replay.mkdir()
+    cv2.imwrite(str(replay / "0.png"), np.full((320, 240, 3), 90, np.uint8))
+    bg = tmp_path / "bg.png"
+    cv2.imwrite(str(bg), np.full((320, 240, 3), 90, np.uint8))
+    bundle = tmp_path / "bundle"
+    shutil.copytree(default_bundle_path(), bundle)
+    for target in (bg, bundle / "model.json", replay / "0.png"):
+        before = target.read_bytes()
+        r = subprocess.run([sys.executable, "-m", "tactile_force.edge.cli", "run", "--source", str(replay),
+                            "--bundle", str(bundle), "--background", str(bg), "--save-scene", str(target), "--force"],
+                           capture_output=True, text=True, timeout=300)
+        assert r.returncode == 2, r.stderr
+        assert "--save-scene" in r.stderr and "input" in r.stderr and "Traceback" not in r.stderr
+        assert target.read_bytes() == before
