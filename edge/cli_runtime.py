@@ -407,9 +407,10 @@ def _plot_cv(t: np.ndarray, est: np.ndarray, truth: np.ndarray, path: Path) -> s
 
 
 def run_demo(source, bundle: str | os.PathLike, out_dir: str | os.PathLike, threads: int = 1,
-             echo=print, every: int = 10) -> DemoSummary:
+             echo=print, every: int = 10, publish_as: str | os.PathLike | None = None) -> DemoSummary:
     """Play ``source`` (a FrameSource whose frames carry truth_n) through the gate and the
-    bundle, write readings.csv, force_vs_time.png (:data:`PLOT_NAME`) and summary.json to ``out_dir``."""
+    bundle, write readings.csv, force_vs_time.png (:data:`PLOT_NAME`) and summary.json to ``out_dir``
+    (the summary names the files under ``publish_as`` when ``out_dir`` is a staging folder moved there)."""
     from .gate import ContactGate
     from .inference import OnnxForceModel
     from .metrics import error_stats
@@ -445,14 +446,16 @@ def run_demo(source, bundle: str | os.PathLike, out_dir: str | os.PathLike, thre
             flag_counts[name] = flag_counts.get(name, 0) + 1
     plot_path = out / PLOT_NAME
     how = _plot(readings, plot_path) if readings else "none"
+    final = Path(publish_as) if publish_as is not None else out
     summary = DemoSummary(
         bundle=str(bundle), readings=len(readings), contact_readings=len(cnn), error=err, gate_agreement=agree,
-        latency_ms=stats.latency_ms, flags=flag_counts, plot=str(plot_path), readings_csv=str(csv_path),
+        latency_ms=stats.latency_ms, flags=flag_counts, plot=str(final / PLOT_NAME),
+        readings_csv=str(final / "readings.csv"),
         notes=[f"plot drawn with {how}", "error over readings where the CNN ran and truth > 0 N",
                "gate_agreement: share of frames where gate contact == (truth >= 1 N)"],
     )
-    summary.summary_json = str(out / "summary.json")
-    Path(summary.summary_json).write_text(json.dumps(asdict(summary), indent=2, default=float) + "\n")
+    summary.summary_json = str(final / "summary.json")
+    (out / "summary.json").write_text(json.dumps(asdict(summary), indent=2, default=float) + "\n")
     return summary
 
 
@@ -463,8 +466,7 @@ def configure_demo(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=0, help="random seed of the virtual DIGIT")
     p.add_argument("--bundle", default="default", help="model bundle (default: the embedded default model)")
     p.add_argument("--threads", type=positive_int, default=1, help="ONNX Runtime intra-op threads (>= 1)")
-    p.add_argument("--force", action="store_true",
-                   help="write into an --out folder that holds other files than a previous demo's")
+    p.add_argument("--force", action="store_true", help="replace --out when it holds an earlier demo's result")
 
 
 def main_demo(args: argparse.Namespace) -> int:
@@ -476,13 +478,10 @@ def main_demo(args: argparse.Namespace) -> int:
     from .output_guard import OutputKind, check_output
 
     out = Path(args.out).absolute()
-    if out.exists() and not out.is_dir():
-        raise SceneError(f"--out {out}: is a file; expected an output folder")
-    # a previous demo's folder is rewritten; a folder of other files only with --force; never the bundle
-    ours = out.is_dir() and all(p.name in (PLOT_NAME, "readings.csv", "summary.json") for p in out.iterdir())
+    # a new or empty folder, or (--force) an earlier demo's result holding nothing else; never the bundle
     check_output(out, [("--bundle", bundle)], force=getattr(args, "force", False), kind=OutputKind.FOLDER,
-                 allow_existing=ours)
-    if problem := output_problem(out / "summary.json"):
+                 verb="demo")
+    if problem := output_problem(out.with_name(f".{out.name}.probe")):  # the staging folder is made beside --out
         raise SceneError(f"--out {out}: {problem}")
     try:
         from .synthetic import VirtualDigitSource
@@ -490,7 +489,10 @@ def main_demo(args: argparse.Namespace) -> int:
         raise SourceError(f"the demo needs tactile_force.edge.synthetic.VirtualDigitSource ({exc})") from None
     source = VirtualDigitSource(seed=args.seed, n_grasps=args.grasps, fps=60.0)
     print(f"virtual DIGIT: {args.grasps} grasps, seed {args.seed} -> bundle {bundle}")
-    s = run_demo(source, bundle, out, threads=args.threads)
+    from .atomic import staged_folder
+
+    with staged_folder(out, "demo") as tmp:
+        s = run_demo(source, bundle, tmp, threads=args.threads, publish_as=out)
     if s.error:
         print(f"error vs truth over {s.error['n']} CNN readings: "
               f"RE {s.error['re_mean']:.3f} +- {s.error['re_std']:.3f}, "

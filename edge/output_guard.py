@@ -9,7 +9,7 @@ Every command that reads inputs and writes an output (``export``, ``quantize``, 
 * an output that *is* an input, lies *inside* an input, or *contains* an input is refused,
   ``--force`` or not (``--out`` = the presses folder, ``--out`` = the folder holding the
   checkpoint, ``quantize B --out B``);
-* an existing output is refused without ``--force``; with ``--force`` a *bundle* output may
+* an existing output is refused without ``--force`` (an empty folder is not); with ``--force`` a *bundle* output may
   only replace a bundle folder (one holding ``model.json``) or an empty folder, never a
   folder of other files, and a *file* output only a regular file;
 * an input that is a FIFO, a socket or a device is refused at once, without opening it
@@ -157,8 +157,9 @@ def check_output(out: str | os.PathLike, inputs: Iterable[InputPath | tuple[str,
             raise OutputRefused(f"{flag} {given}: already exists; pass --force to replace it, or give a new file name")
         return given
     if not given.is_dir():
-        raise OutputRefused(f"{flag} {given}: is a file; expected a {kind.value} folder to create")
-    if allow_existing:
+        what = "an output folder" if kind is OutputKind.FOLDER else "a bundle folder to create"
+        raise OutputRefused(f"{flag} {given}: is a file; expected {what}")
+    if allow_existing or not any(given.iterdir()):  # an empty folder holds nothing to lose
         return given
     if not force:
         raise OutputRefused(f"{flag} {given}: already exists; pass --force to replace it, or give a new folder")

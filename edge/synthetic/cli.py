@@ -17,7 +17,8 @@ from ..cli_args import finite_float
 
 def configure(parser: argparse.ArgumentParser) -> None:
     """Arguments of the synth command."""
-    parser.add_argument("--out", required=True, help="output folder (created; must not hold images/ yet)")
+    parser.add_argument("--out", required=True, help="output folder (new or empty; written whole when done)")
+    parser.add_argument("--force", action="store_true", help="replace --out when it holds an earlier synth dataset")
     parser.add_argument("--n", type=int, default=1000, help="number of samples (default 1000)")
     parser.add_argument("--seed", type=int, default=0, help="random seed (same seed -> same files)")
     parser.add_argument("--indenters", default="paper",
@@ -49,9 +50,9 @@ def _problems(args: argparse.Namespace) -> list[str]:
     dest = Path(args.out)
     from ..output_guard import OutputKind, OutputRefused, check_output
 
-    try:  # synth adds to a new or empty folder; it must not be, hold or lie inside an input file
+    try:  # a new or empty folder, or (--force) an earlier synth dataset; never an input
         check_output(dest, [("--background", args.background), ("--normal-to-rgb-mlp", args.normal_to_rgb_mlp)],
-                     kind=OutputKind.FOLDER, allow_existing=True)
+                     force=args.force, kind=OutputKind.FOLDER, verb="synth")
     except OutputRefused as exc:
         out.append(str(exc))
     if dest.exists() and not dest.is_dir():
@@ -98,6 +99,10 @@ def main(args: argparse.Namespace) -> int:
         digit=VirtualDigitOptions(background=args.background, normal_to_rgb_mlp=args.normal_to_rgb_mlp),
         progress=not args.no_progress,
     )
-    summary = generate_dataset(args.out, options)
+    from ..atomic import staged_folder
+
+    with staged_folder(args.out, "synth") as tmp:  # interrupted: no half dataset, no image without its label
+        summary = generate_dataset(tmp, options)
+    summary.root = Path(args.out)
     print(json.dumps(summary.as_dict(), indent=1))
     return 0
