@@ -174,4 +174,6 @@ def main_record(args: argparse.Namespace) -> int:
               "before it are kept and readable. Free some space and run the same command again to resume.",
               file=sys.stderr)
         return 1
+    if result.signal is not None:  # every sample written before the signal is whole and kept
+        return 128 + int(result.signal)
     return 0 if not result.stopped_by.startswith(("sensor lost", "scale lost")) else 1

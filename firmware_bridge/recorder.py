@@ -66,6 +66,7 @@ class RecordResult:
     removed_unlabelled: list[int] = field(default_factory=list)
     stopped_by: str = ""
     repairs: list[RepairReport] = field(default_factory=list)
+    signal: int | None = None  # the signal (SIGINT, SIGTERM) that stopped the recording, if one did
 
     @property
     def write_failed(self) -> bool:
@@ -160,6 +161,7 @@ class _StopFlag:
 
     def __init__(self, enabled: bool) -> None:
         self.set = False
+        self.signum: int | None = None
         self._old: dict[int, Any] = {}
         self._enabled = enabled and threading.current_thread() is threading.main_thread()
 
@@ -171,6 +173,7 @@ class _StopFlag:
 
     def _handle(self, signum, frame) -> None:
         self.set = True
+        self.signum = signum
 
     def __exit__(self, *exc) -> None:
         for sig, old in self._old.items():
@@ -223,6 +226,7 @@ def _loop(source: FrameSource, reference: ForceReference, options: RecordOptions
         while True:
             if stop.set:
                 result.stopped_by = "interrupted"
+                result.signal = stop.signum
                 break
             if options.max_samples is not None and len(result.written) >= options.max_samples:
                 result.stopped_by = "max_samples"
