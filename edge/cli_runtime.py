@@ -346,8 +346,7 @@ def main_run(args: argparse.Namespace) -> int:
         print(f"wrote {plot} (force and truth against time)", file=sys.stderr)
     if stop.signal is not None:
         print(f"run stopped by {stop.signal.name} after {stats.readings} readings; outputs closed", file=sys.stderr)
-        if stop.signal == signal.SIGINT:
-            return 130
+        return 128 + int(stop.signal)  # 130 SIGINT, 143 SIGTERM: every output complete, but the run was cut short
     if stats.processed == 0:
         why = "; ".join(f"sensor '{s.name}': {s.source.stats.frames} frames read, {s.source.stats.corrupt} corrupt"
                         + (f", {s.error}" if s.error else "") for s in rt.sensors)

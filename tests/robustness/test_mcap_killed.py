@@ -81,7 +81,7 @@ def _stopped_run(replay: Path, tmp_path: Path, sig: int, after: int = 12) -> tup
     return subprocess.CompletedProcess(proc.args, proc.returncode, stdout, stderr), out_csv, out_mcap
 
 
-@pytest.mark.parametrize("sig, code", [(signal.SIGTERM, 0), (signal.SIGINT, 130)])
+@pytest.mark.parametrize("sig, code", [(signal.SIGTERM, 143), (signal.SIGINT, 130)])
 def test_sigterm_and_sigint_finalize_the_log(replay, tmp_path, sig, code):
     done, out_csv, out_mcap = _stopped_run(replay, tmp_path, sig)
     assert done.returncode == code, done.stderr[-800:]
