@@ -103,7 +103,10 @@ class BundleResult:
     source, gate, depth, inference, glue), its error on labelled data (None without
     ``--data``), the error its manifest records (``manifest_re``, on the data it was made
     with), and its verdict against the budget: PASS, OVER_BUDGET, MACHINE_BUSY, or NO_READINGS
-    (most bench frames gave no force, e.g. the bundle fails on them: ``note`` says why)."""
+    (most bench frames gave no force, e.g. the bundle fails on them: ``note`` says why).
+    ``precision`` is what the graph holds, as ``bundle verify`` reads it
+    (:func:`tactile_force.edge.graph_facts.graph_precision`), not the manifest's word; ``note``
+    says when the manifest claims another."""
 
     path: str
     name: str
@@ -323,6 +326,7 @@ def bench_bundle(path: Path, pool, frames: int = 1000, threads: int = 1, budget_
     import time
 
     from tactile_force.edge.bundle import load_bundle
+    from tactile_force.edge.graph_facts import bundle_precision
 
     from .bundles import ModelConfig
     from .check import JUDGED, judge
@@ -330,9 +334,10 @@ def bench_bundle(path: Path, pool, frames: int = 1000, threads: int = 1, budget_
 
     bundle = load_bundle(path)
     m = bundle.manifest
+    precision = bundle_precision(bundle.onnx_path)  # what the graph holds, as bundle verify reads it
     scale = m.architecture.input_scale or 1.0
     cfg = ModelConfig(str(m.variant), float(m.architecture.width or 1.0), max(1, round(1.0 / scale)))
-    case = LatencyCase(cfg, str(m.precision), threads=threads, frames=frames, warmup=warmup, bundle=Path(path))
+    case = LatencyCase(cfg, precision, threads=threads, frames=frames, warmup=warmup, bundle=Path(path))
     depth = _depth_factory(m)
 
     def once():
@@ -348,10 +353,13 @@ def bench_bundle(path: Path, pool, frames: int = 1000, threads: int = 1, budget_
         # most frames gave no force: the times are not the model's; say why instead of judging them
         verdict_name = "NO_READINGS"
         note = f"{note}; no force on most bench frames: {_first_problem(bundle, pool, depth)}"
+    if precision != str(m.precision):
+        note = (f"{note}; " if note else "") + (f"the manifest says {m.precision} but the graph is {precision} "
+                                                "(bundle verify refuses this bundle)")
     stages = {k: _timing(s[k]) for k in STAGES if k in s and (k != "depth" or case.needs_depth)}
     score = m.error_score()
     return BundleResult(
-        path=str(path), name=m.name, variant=str(m.variant), precision=str(m.precision), total_ms=_timing(s[JUDGED]),
+        path=str(path), name=m.name, variant=str(m.variant), precision=precision, total_ms=_timing(s[JUDGED]),
         stages_ms=stages, error=None, manifest_re=_f(score), verdict=verdict_name,
         attempts=[Attempt(_f(a.p99_ms), _machine_state(a.machine)) for a in attempts], note=note)
 
