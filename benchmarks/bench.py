@@ -244,11 +244,13 @@ def _depth_factory(manifest) -> Callable[[], object] | None:
 
 
 def replay_readings(bundle: Path, data: Path, background: Path | None, threads: int = 1,
-                    warn: Callable[[str], None] | None = None) -> list:
+                    warn: Callable[[str], None] | None = None, calibrate: bool = True) -> list:
     """The readings with truth of ``bundle`` on the labelled folder ``data`` (authors' layout),
     replayed through the runtime exactly as ``tactile-force run --source DATA --bundle BUNDLE
     --background BG`` builds it (list of ForceReading, in frame order). ``warn``: gets the
-    scene's warnings (default: dropped).
+    scene's warnings (default: dropped). ``calibrate=False``: the model's output is not put
+    through the bundle's force calibration (``raw_force_n`` is then the raw estimate the
+    runtime's inputs give, what ``calibrate-force`` fits on).
 
     Raises a TactileForceError subclass (exit 2) when ``data``, ``background`` or ``bundle``
     is unusable."""
@@ -258,6 +260,8 @@ def replay_readings(bundle: Path, data: Path, background: Path | None, threads: 
     scene.threads = threads
     scene = check_scene(scene)
     built = build_scene(scene, warn=warn or (lambda m: None))
+    if not calibrate:
+        built.runtime.model.calibration = None  # OnnxForceModel(calibrate=False)
     readings: list = []
     try:
         built.runtime.run([], on_reading=lambda r: readings.append(r) if r.truth_n is not None else None)
