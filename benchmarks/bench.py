@@ -103,7 +103,10 @@ class BundleResult:
     source, gate, depth, inference, glue), its error on labelled data (None without
     ``--data``), the error its manifest records (``manifest_re``, on the data it was made
     with), and its verdict against the budget: PASS, OVER_BUDGET, MACHINE_BUSY, or NO_READINGS
-    (most bench frames gave no force, e.g. the bundle fails on them: ``note`` says why)."""
+    (most bench frames gave no force, e.g. the bundle fails on them: ``note`` says why).
+    ``precision`` is what the graph holds, as ``bundle verify`` reads it
+    (:func:`tactile_force.edge.graph_facts.graph_precision`), not the manifest's word; ``note``
+    says when the manifest claims another."""
 
     path: str
     name: str
@@ -242,11 +245,13 @@ def _depth_factory(manifest) -> Callable[[], object] | None:
 
 
 def replay_readings(bundle: Path, data: Path, background: Path | None, threads: int = 1,
-                    warn: Callable[[str], None] | None = None) -> list:
+                    warn: Callable[[str], None] | None = None, calibrate: bool = True) -> list:
     """The readings with truth of ``bundle`` on the labelled folder ``data`` (authors' layout),
     replayed through the runtime exactly as ``tactile-force run --source DATA --bundle BUNDLE
     --background BG`` builds it (list of ForceReading, in frame order). ``warn``: gets the
-    scene's warnings (default: dropped).
+    scene's warnings (default: dropped). ``calibrate=False``: the model's output is not put
+    through the bundle's force calibration (``raw_force_n`` is then the raw estimate the
+    runtime's inputs give, what ``calibrate-force`` fits on).
 
     Raises a TactileForceError subclass (exit 2) when ``data``, ``background`` or ``bundle``
     is unusable."""
@@ -256,6 +261,8 @@ def replay_readings(bundle: Path, data: Path, background: Path | None, threads: 
     scene.threads = threads
     scene = check_scene(scene)
     built = build_scene(scene, warn=warn or (lambda m: None))
+    if not calibrate:
+        built.runtime.model.calibration = None  # OnnxForceModel(calibrate=False)
     readings: list = []
     try:
         built.runtime.run([], on_reading=lambda r: readings.append(r) if r.truth_n is not None else None)
@@ -324,6 +331,7 @@ def bench_bundle(path: Path, pool, frames: int = 1000, threads: int = 1, budget_
     import time
 
     from tactile_force.edge.bundle import load_bundle
+    from tactile_force.edge.graph_facts import bundle_precision
 
     from .bundles import ModelConfig
     from .check import JUDGED, judge
@@ -332,9 +340,10 @@ def bench_bundle(path: Path, pool, frames: int = 1000, threads: int = 1, budget_
 
     bundle = load_bundle(path)
     m = bundle.manifest
+    precision = bundle_precision(bundle.onnx_path)  # what the graph holds, as bundle verify reads it
     scale = m.architecture.input_scale or 1.0
     cfg = ModelConfig(str(m.variant), float(m.architecture.width or 1.0), max(1, round(1.0 / scale)))
-    case = LatencyCase(cfg, str(m.precision), threads=threads, frames=frames, warmup=warmup, bundle=Path(path))
+    case = LatencyCase(cfg, precision, threads=threads, frames=frames, warmup=warmup, bundle=Path(path))
     depth = _depth_factory(m)
 
     def once():
@@ -353,10 +362,13 @@ def bench_bundle(path: Path, pool, frames: int = 1000, threads: int = 1, budget_
         # most frames gave no force: the times are not the model's; say why instead of judging them
         verdict_name = "NO_READINGS"
         note = f"{note}; no force on most bench frames: {_first_problem(bundle, pool, depth)}"
+    if precision != str(m.precision):
+        note = (f"{note}; " if note else "") + (f"the manifest says {m.precision} but the graph is {precision} "
+                                                "(bundle verify refuses this bundle)")
     stages = {k: _timing(s[k]) for k in STAGES if k in s and (k != "depth" or case.needs_depth)}
     score = m.error_score()
     return BundleResult(
-        path=str(path), name=m.name, variant=str(m.variant), precision=str(m.precision), total_ms=_timing(s[JUDGED]),
+        path=str(path), name=m.name, variant=str(m.variant), precision=precision, total_ms=_timing(s[JUDGED]),
         stages_ms=stages, error=None, manifest_re=_f(score), verdict=verdict_name,
         attempts=[Attempt(_f(a.p99_ms), _machine_state(a.machine)) for a in attempts], note=note)
 

@@ -14,6 +14,11 @@ After a per-channel gain and offset (LED drift), the cells that do not fit are f
 most of the image fits (the same sensor) and the misfit forms one compact blob away from the
 frame's border, the background differs from the sensor's no-contact image like a press does.
 With no reference in the bundle the check cannot run and says so once.
+
+``calibrate-force --background`` is checked the same way before it becomes the sensor's
+recorded no-contact image (:func:`given_background_press`): against the source bundle's
+reference, else against the lightest press (the image that calibration would record without
+``--background``, with the rule the runtime applies to such a reference).
 """
 
 from __future__ import annotations
@@ -24,6 +29,17 @@ import numpy as np
 MIN_SAME_SENSOR_FIT = 0.3
 #: Smallest blob of misfit cells (share of the grid) that reads as a press (~ a 5 mm contact on a DIGIT).
 MIN_PRESS_CELLS = 0.02
+#: The same against a reference taken from the lightest calibration press (it holds that press).
+FROM_PRESS_CELLS = 0.10
+
+
+def fingerprint_reference(fp, what: str = "") -> tuple[np.ndarray, str, float]:
+    """(thumbnail rows x cols x 3, what it is, smallest press blob as a share of the grid) of a
+    :class:`~.force_calibration.SensorFingerprint` with a thumbnail. ``what``: how messages
+    name it (default: the image of the sensor the force calibration was fitted on)."""
+    return (np.asarray(fp.thumb, np.float64).reshape(fp.thumb_rows, fp.thumb_cols, 3),
+            what or f"the image of the sensor the force calibration was fitted on ({fp.source})",
+            FROM_PRESS_CELLS if fp.from_press else MIN_PRESS_CELLS)
 
 
 def reference_thumb(model: object) -> tuple[np.ndarray | None, str, float]:
@@ -35,9 +51,7 @@ def reference_thumb(model: object) -> tuple[np.ndarray | None, str, float]:
     cal = getattr(m, "force_calibration", None)
     fp = getattr(cal, "sensor", None)
     if fp is not None and fp.thumb:
-        return (np.asarray(fp.thumb, np.float64).reshape(fp.thumb_rows, fp.thumb_cols, 3),
-                f"the image of the sensor the force calibration was fitted on ({fp.source})",
-                0.10 if fp.from_press else MIN_PRESS_CELLS)
+        return fingerprint_reference(fp)
     ds = getattr(m, "data_stats", None)
     thumb = getattr(ds, "background_thumb", None)
     if ds is not None and thumb:
@@ -80,4 +94,20 @@ def pressed_background(frame_bgr: np.ndarray, ref: np.ndarray, ref_what: str = "
             "no-contact image (sensor untouched), or let the gate learn the background with the gripper open")
 
 
-__all__ = ["pressed_background", "reference_thumb"]
+def given_background_press(frame_bgr: np.ndarray, model: object, origin: str, stand_in=None) -> str:
+    """Why a background about to be used with ``model`` (HxWx3 uint8 BGR) looks pressed, or "".
+
+    Checked as the runtime checks a given background (:func:`reference_thumb`,
+    :func:`pressed_background`); when the model's bundle carries no reference, against
+    ``stand_in`` (a :class:`~.force_calibration.SensorFingerprint`, e.g. of the lightest
+    calibration press, with ``from_press`` set: then only a blob of 10 % of the grid counts);
+    "" when there is neither. ``origin`` names the image in the message."""
+    ref, what, cells = reference_thumb(model)
+    if ref is None and stand_in is not None and stand_in.thumb:
+        ref, what, cells = fingerprint_reference(stand_in, stand_in.source)
+    if ref is None:
+        return ""
+    return pressed_background(frame_bgr, ref, what, origin, min_cells=cells)
+
+
+__all__ = ["fingerprint_reference", "given_background_press", "pressed_background", "reference_thumb"]

@@ -1,9 +1,13 @@
 """Fit a per-sensor force calibration from a few labelled presses (``tactile-force calibrate-force``).
 
-The bundle's model is run on every labelled frame (no gate: each frame is a press the user
-made) to get its raw estimate; a monotone map raw -> newtons is fitted and stored in a new
-bundle (same ONNX bytes, manifest field ``force_calibration``), which the runtime applies to
-every model output.
+The bundle's model gives its raw (uncalibrated) estimate of every labelled press from the
+inputs the runtime gives it (:func:`press_estimates`): an RGB-only model reads the frame (no
+gate: each frame is a press the user made); a depth model reads the depth image the runtime's
+depth stage makes from the frame and the contact gate's mask, so the presses are replayed
+through the runtime ``tactile-force run`` builds (a ``filt_img_depth/`` folder is never read;
+a press the runtime gives no force is left out). A monotone map raw -> newtons is fitted and
+stored in a new bundle (same ONNX bytes, manifest field ``force_calibration``), which the
+runtime applies to every model output.
 
 Fit (numpy only): isotonic regression (pool-adjacent-violators) of the true force on the raw
 estimate, knots at each pooled block's mean raw estimate, straight lines between knots; or
@@ -19,7 +23,9 @@ Refusals (:class:`CalibrationRefused`, exit code 2), thresholds in :class:`Calib
 - Spearman rank correlation of raw estimate vs truth below 0.8: the model does not order
   these presses by force, so no monotone map can make it right (wrong sensor, wrong model,
   or mislabelled frames);
-- a non-positive least-squares slope, non-finite estimates or labels.
+- a non-positive least-squares slope, non-finite estimates or labels;
+- a ``--background`` that looks pressed (checked as the runtime checks a given background,
+  edge/background_check.py): it would become the sensor's recorded no-contact image.
 
 Leave-one-out (LOO) error before and after: each frame is predicted by a map fitted on the
 other frames, so the "after" figure is what an unseen press of the same kind would get.
@@ -240,16 +246,17 @@ def fit_force_calibration(raw: np.ndarray, truth: np.ndarray, method: str = "iso
 
 @dataclass
 class LabelledFrames:
-    """Labelled frames: rgb (N,320,240,3) uint8 BGR, depth (N,320,240,1) uint8 or None, force (N,) N."""
+    """Labelled frames: rgb (N,320,240,3) uint8 BGR, force (N,) N. Depth images are never read
+    from the data: a depth bundle's are made by the runtime (:func:`press_estimates`)."""
 
     rgb: np.ndarray
-    depth: np.ndarray | None
     force: np.ndarray
     source: str
 
 
-def read_labelled(root: str | os.PathLike, need_depth: bool = False) -> LabelledFrames:
-    """Frames and forces from the authors' layout (which ``tactile-force record`` writes)."""
+def read_labelled(root: str | os.PathLike) -> LabelledFrames:
+    """Frames and forces from the authors' layout (which ``tactile-force record`` writes:
+    ``images/N.png`` + ``forces/force_N.txt``; a ``filt_img_depth/`` folder is not read)."""
     from .dataset import AuthorsDataset
     from .errors import DatasetError
     from .frames import check_frame
@@ -259,7 +266,7 @@ def read_labelled(root: str | os.PathLike, need_depth: bool = False) -> Labelled
     if not p.is_dir():
         raise CalibrationRefused(f"--data {p}: folder not found (expected images/N.png + forces/force_N.txt)")
     try:
-        ds = AuthorsDataset(p, require_depth=need_depth)
+        ds = AuthorsDataset(p, require_depth=False)
         samples = [ds.load(n) for n in ds.ids]
         ds.check_unique(samples)  # a copied press would make the leave-one-out error read near zero
     except DatasetError as exc:
@@ -271,20 +278,30 @@ def read_labelled(root: str | os.PathLike, need_depth: bool = False) -> Labelled
             check_frame(s.frame)
         except TactileForceError as exc:
             raise CalibrationRefused(f"{ds.image_path(s.id)}: {exc}") from None
-    depth = None
-    if need_depth:
-        depth = np.stack([np.asarray(s.depth).reshape(320, 240, 1) for s in samples])
-    return LabelledFrames(np.stack([s.frame for s in samples]), depth,
-                          np.array([s.force_n for s in samples], np.float64), f"{p} ({len(samples)} frames)")
+    return LabelledFrames(np.stack([s.frame for s in samples]), np.array([s.force_n for s in samples], np.float64),
+                          f"{p} ({len(samples)} frames)")
+
+
+def _lightest_press(frames: LabelledFrames, serial: str = ""):
+    """The fingerprint of the lightest press (least contact), standing in for a no-contact image."""
+    from .force_calibration import sensor_fingerprint
+
+    k = int(np.argmin(frames.force))
+    fp = sensor_fingerprint(frames.rgb[k], serial, f"the lightest press of {frames.source} ({frames.force[k]:.2f} N)")
+    fp.from_press = True
+    return fp
 
 
 def sensor_record(data: str | os.PathLike, frames: LabelledFrames, serial: str = "",
-                  background: str | os.PathLike | None = None):
+                  background: str | os.PathLike | None = None, model: object | None = None):
     """The :class:`~.force_calibration.SensorFingerprint` of the sensor the presses in ``data``
     were recorded on: ``serial`` (else the single ``sensor`` that ``record`` wrote in
     ``meta.jsonl``, else unknown) and the fingerprint of ``background`` (a no-contact image of
     it), else of the lightest press (least contact). Raises :class:`CalibrationRefused` for an
-    unreadable background or presses whose meta names several sensors."""
+    unreadable background, presses whose meta names several sensors, or (with ``model``, the
+    bundle being calibrated) a background that looks pressed: checked as the runtime checks a
+    given background, against the bundle's no-contact reference, else against the lightest
+    press (:func:`~.background_check.given_background_press`)."""
     import json
 
     from .force_calibration import sensor_fingerprint
@@ -304,6 +321,7 @@ def sensor_record(data: str | os.PathLike, frames: LabelledFrames, serial: str =
                                      "calibration belongs to one sensor (pass --sensor SERIAL to choose)")
         serial = names.pop() if names else ""
     if background is not None:
+        from .background_check import given_background_press
         from .errors import SourceError
         from .sources import load_background
 
@@ -314,24 +332,68 @@ def sensor_record(data: str | os.PathLike, frames: LabelledFrames, serial: str =
         if frame.shape != frames.rgb.shape[1:]:
             raise CalibrationRefused(f"--background {background}: {frame.shape[1]}x{frame.shape[0]} image; the "
                                      f"presses are {frames.rgb.shape[2]}x{frames.rgb.shape[1]} (one sensor, one size)")
+        if model is not None:
+            why = given_background_press(frame, model, f"--background {background}", _lightest_press(frames, serial))
+            if why:
+                raise CalibrationRefused(f"{why} (it would be recorded as the sensor's no-contact image, and a depth "
+                                         "bundle's contact masks are made against it)")
         return sensor_fingerprint(frame, serial, f"--background {background}")
-    k = int(np.argmin(frames.force))
+    fp = _lightest_press(frames, serial)
     logging.getLogger(__name__).warning(
         "calibrate-force: no --background: the sensor's fingerprint is taken from the lightest press (%.2f N); a "
-        "no-contact image of the sensor (--background NO_CONTACT.png) makes it exact", frames.force[k])
-    fp = sensor_fingerprint(frames.rgb[k], serial, f"the lightest press of {frames.source} ({frames.force[k]:.2f} N)")
-    fp.from_press = True
+        "no-contact image of the sensor (--background NO_CONTACT.png) makes it exact", float(np.min(frames.force)))
     return fp
 
 
 def raw_estimates(model, frames: LabelledFrames) -> np.ndarray:
-    """Uncalibrated estimates (N,) of an OnnxForceModel loaded with ``calibrate=False``."""
+    """Estimates (N,) of an RGB-only OnnxForceModel on every frame (uncalibrated when loaded
+    with ``calibrate=False``): the frame is all such a model reads, so these are the estimates
+    the runtime gives those frames. Depth models: :func:`press_estimates`."""
+    if model.needs_depth:
+        raise ValueError("raw_estimates: a depth model reads the depth the runtime makes; use press_estimates")
     out = np.empty(len(frames.force), np.float64)
     for i in range(0, out.size, 2):
-        rgb = frames.rgb[i:i + 2] if model.rgb_name else None
-        depth = frames.depth[i:i + 2] if frames.depth is not None else None
-        out[i:i + 2] = model.predict(rgb, depth)
+        out[i:i + 2] = model.predict(frames.rgb[i:i + 2])
     return out
+
+
+def press_estimates(bundle_path: str | os.PathLike, model, frames: LabelledFrames, data: str | os.PathLike,
+                    background: str | os.PathLike | None = None) -> tuple[np.ndarray, list[str]]:
+    """The uncalibrated estimate of every press from the inputs the runtime gives the model.
+
+    An RGB-only model reads the frame itself (:func:`raw_estimates`). A depth model (D, Dmod,
+    RGBmod+D) reads the depth image the runtime's depth stage makes from the frame and the
+    contact gate's mask: the presses in ``data`` are replayed through the same runtime
+    ``tactile-force run --source DATA --bundle BUNDLE [--background BG]`` builds
+    (:func:`tactile_force.benchmarks.bench.replay_readings`, the bundle's calibration not
+    applied), against ``background`` when given, else the background the gate learns from the
+    first frames, as ``run`` does. A press the runtime gives no force (the gate saw no
+    contact, it was learning its background, the depth stage failed) has no estimate.
+
+    Returns
+    -------
+    tuple of (numpy.ndarray, list of str)
+        The estimates (N,) in N (NaN where there is none) and, per press, why it has none
+        ("" = it has one).
+    """
+    if not model.needs_depth:
+        return raw_estimates(model, frames), [""] * len(frames.force)
+    from tactile_force.benchmarks.bench import replay_readings
+
+    readings = replay_readings(Path(bundle_path), Path(data), Path(background) if background is not None else None,
+                               warn=logging.getLogger(__name__).warning, calibrate=False)
+    by_index = {r.frame_index: r for r in readings}
+    raw = np.full(len(frames.force), np.nan)
+    why = ["not read by the runtime"] * len(frames.force)
+    for i in range(raw.size):
+        r = by_index.get(i)
+        if r is None:
+            continue
+        if r.raw_force_n == r.raw_force_n:  # the CNN ran on the runtime's inputs
+            raw[i], why[i] = float(r.raw_force_n), ""
+        else:
+            why[i] = "|".join(r.flags.names()) + (f" ({r.detail})" if r.detail else "")
+    return raw, why
 
 
 def calibrate_bundle(bundle_path: str | os.PathLike, data: str | os.PathLike, out: str | os.PathLike,
@@ -358,11 +420,14 @@ def calibrate_bundle(bundle_path: str | os.PathLike, data: str | os.PathLike, ou
     dest = check_output(out, inputs, force=overwrite, kind=OutputKind.BUNDLE)
     src = load_bundle(bundle_path)
     model = OnnxForceModel(src, threads=1, calibrate=False)
-    frames = read_labelled(data, need_depth=model.needs_depth)
-    raw = raw_estimates(model, frames)
+    frames = read_labelled(data)
+    fingerprint = sensor_record(data, frames, sensor, background, model)  # a pressed background: refused here
+    raw, why = press_estimates(src.path, model, frames, data, background)
+    frames = _with_estimates(frames, why, limits or CalibrationLimits(), data)
+    raw = raw[[not w for w in why]]
     cal = fit_force_calibration(raw, frames.force, method, limits, data=frames.source,
                                 model_sha256=src.manifest.sha256)
-    cal.sensor = sensor_record(data, frames, sensor, background)
+    cal.sensor = fingerprint
     manifest = copy.deepcopy(src.manifest)
     manifest.force_calibration = cal
     manifest.name = dest.name
@@ -388,6 +453,33 @@ def calibrate_bundle(bundle_path: str | os.PathLike, data: str | os.PathLike, ou
     return write_bundle(dest, src.onnx_path.read_bytes(), manifest, overwrite=overwrite, inputs=inputs), cal
 
 
+def _with_estimates(frames: LabelledFrames, why: list[str], limits: CalibrationLimits,
+                    data: str | os.PathLike) -> LabelledFrames:
+    """The presses the runtime gave a force (``why`` "" for them): the others are left out of
+    the fit with a warning (the runtime never applies the map to them); refused when fewer than
+    ``limits.min_frames`` remain."""
+    keep = np.array([not w for w in why], bool)
+    if keep.all():
+        return frames
+    reasons: dict[str, int] = {}
+    for w in why:
+        if w:
+            reasons[w] = reasons.get(w, 0) + 1
+    said = "; ".join(f"{n} x {w}" for w, n in sorted(reasons.items(), key=lambda kv: -kv[1]))
+    n, k = keep.size, int(keep.sum())
+    if k < limits.min_frames:
+        raise CalibrationRefused(
+            f"only {k} of the {n} presses got a force estimate through the runtime (the others: {said}); at least "
+            f"{limits.min_frames} are needed. A depth bundle reads the depth the runtime makes from each frame's "
+            "contact against the sensor's no-contact image: give --background NO_CONTACT.png (the sensor untouched)"
+            ", or record a few frames without contact first (the runtime learns its background from them)")
+    logging.getLogger(__name__).warning(
+        "calibrate-force: %d of the %d presses got no force estimate through the runtime (%s); the map is fitted "
+        "on the other %d (the runtime never applies it to such frames)", n - k, n, said, k)
+    return LabelledFrames(frames.rgb[keep], frames.force[keep],
+                          f"{Path(data)} ({k} of {n} frames with a runtime estimate)")
+
+
 # ----------------------------------------------------------------------------- CLI
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -404,7 +496,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
                              "meta.jsonl); the runtime flags readings of another sensor out_of_distribution")
     parser.add_argument("--background", default=None, metavar="NO_CONTACT.png",
                         help="no-contact image of the same sensor: its fingerprint is recorded with the calibration "
-                             "(default: the lightest press stands in for it)")
+                             "(default: the lightest press stands in for it); a depth bundle's presses are judged "
+                             "against it as 'run --background' does (default: learnt from the first frames, as 'run' "
+                             "does); refused when it looks pressed")
     parser.add_argument("--coverage", type=float, default=DEFAULT_COVERAGE,
                         help="coverage of every reading's interval, fitted on the leave-one-out predictions "
                              f"(default {DEFAULT_COVERAGE:g}; 0 < c < 1)")

@@ -2,9 +2,12 @@
 
 ``verify`` exits 0 when no file of the bundle resolves outside it (symbolic links), the
 manifest validates, the sha256 matches, the graph fits the frame contract its manifest
-declares (inputs, variant), its op types and weights match the manifest's precision
-(:mod:`.graph_facts`, no ``onnx`` package needed) and one batch-2 run gives two finite
-forces; 1 when any check fails (the reason on one line).
+declares (inputs, variant), every manifest claim the graph can show agrees with it
+(:func:`.graph_facts.manifest_problems`, no ``onnx`` package needed: the precision,
+int8-static / int8-dynamic / fp16 / fp32, from its op types and weights; the network input
+size against ``architecture.input_scale`` / ``network_input_hw`` and the inputs' reduction;
+the inputs against the variant) and one batch-2 run gives two finite forces; 1 when any
+check fails (the reasons on one line).
 """
 
 from __future__ import annotations
@@ -20,8 +23,8 @@ def configure_bundle(p: argparse.ArgumentParser) -> None:
                      "  show PATH     print the manifest summary (--json for all of it, --nodes for node names)\n"
                      "  verify PATH   refuse files linked from outside the bundle, validate the manifest, check\n"
                      "                the sha256, load the graph in ONNX Runtime against the frame contract, check\n"
-                     "                its ops/weights against the manifest's precision and run it once; exit 1 if\n"
-                     "                anything is off")
+                     "                the manifest's precision, input scale and variant inputs against the graph\n"
+                     "                and run it once; exit 1 if anything is off")
     p.add_argument("action", choices=("show", "verify"))
     p.add_argument("path", type=Path, help="bundle folder, or NAME.onnx with its NAME.json")
     p.add_argument("--json", action="store_true", help="show: print the full manifest as JSON")
@@ -150,7 +153,7 @@ def _verify(path: Path) -> int:
     import numpy as np
 
     from .errors import BundleError
-    from .graph_facts import graph_facts, precision_problem
+    from .graph_facts import graph_facts, manifest_problems
     from .inference import MAX_BATCH, OnnxForceModel
 
     outside = files_outside(path)
@@ -160,9 +163,9 @@ def _verify(path: Path) -> int:
     model = OnnxForceModel(path, warmup=0)  # validates manifest, hash and graph contract (inputs, variant)
     try:
         b = model.bundle
-        problem = precision_problem(b.manifest.precision.value, graph_facts(b.onnx_path))
-        if problem:
-            raise BundleError(f"{b.onnx_path}: {problem}")
+        problems = manifest_problems(b.manifest, graph_facts(b.onnx_path))
+        if problems:
+            raise BundleError(f"{b.onnx_path}: {'; '.join(problems)}")
         rgb = np.zeros((MAX_BATCH, 320, 240, 3), np.uint8) if model.rgb_name else None
         depth = np.zeros((MAX_BATCH, 320, 240, 1), np.uint8) if model.needs_depth else None
         out = model.predict(rgb, depth)
@@ -171,7 +174,9 @@ def _verify(path: Path) -> int:
                               "expected finite forces (N), one per frame")
     finally:
         model.close()
+    a = b.manifest.architecture
     print(f"ok: {b.path} ({b.variant}, {b.manifest.precision.value}) manifest valid, sha256 matches, files inside "
-          f"the bundle, graph fits the frame contract, its ops and weights are {b.manifest.precision.value}, runs, "
-          "output float32 N")
+          f"the bundle, graph fits the frame contract, its ops and weights are {b.manifest.precision.value}, its "
+          f"inputs are the variant's at input scale {a.input_scale:g} ({a.network_input_hw[0]} x "
+          f"{a.network_input_hw[1]}), runs, output float32 N")
     return 0

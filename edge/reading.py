@@ -16,9 +16,10 @@ class IntervalState(str, enum.Enum):
     ``known``: a central interval holding the true force with the bundle's stated coverage
     (``ForceInterval.coverage``, default 0.90); ``open_above``: the lower bound is known,
     the upper bound is +inf (a ``saturated`` reading: the force may be anything above);
-    ``unknown``: both bounds NaN, because there is no estimate (force NaN) or the bundle
-    states no interval for it (none recorded, too few labelled frames for the coverage, or
-    recorded for another model). Never an invented interval.
+    ``unknown``: both bounds NaN, because there is no estimate (force NaN), the frame was
+    read while the gate learnt its background (not judged), or the bundle states no interval
+    for it (none recorded, too few labelled frames for the coverage, or recorded for another
+    model). Never an invented interval.
     """
 
     KNOWN = "known"

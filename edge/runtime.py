@@ -4,7 +4,8 @@ One :meth:`ForceRuntime.step` reads the newest frame of every live sensor, gates
 the depth stage (depth bundles only) and one ``predict`` call for all sensors in contact
 (batch 2 when both fingers touch), and returns one :class:`ForceReading` per frame:
 
-- gate closed -> 0 N, ``no_contact``, the CNN is not run;
+- gate closed -> 0 N, ``no_contact``, the CNN is not run; while the gate still learns its
+  background (detail "learning background") the frame is not judged: interval ``unknown``;
 - frames a source skipped because a newer one arrived -> ``stale`` readings (force nan);
 - a reading whose total latency exceeds ``deadline_ms`` -> ``late`` (still reported); total
   latency runs from the frame's arrival (``TimedFrame.arrival_ns``, stamped by the source
@@ -527,7 +528,10 @@ class ForceRuntime:
 
     def _reading(self, s: Sensor, tf: TimedFrame | None, flags: Flags, force: float = math.nan,
                  latency: StageLatency | None = None, detail: str = "", area: int = 0,
-                 raw: float = math.nan) -> ForceReading:
+                 raw: float = math.nan, settled: bool = True) -> ForceReading:
+        """A reading; its error bar comes from the bundle's interval only when it has a force
+        and ``settled``: the gate judged the frame against a settled background (False while
+        the background is learnt: nothing is known then, the interval stays ``unknown``)."""
         r = ForceReading(
             sensor=s.name,
             timestamp_ns=tf.timestamp_ns if tf is not None else self.clock(),
@@ -535,7 +539,7 @@ class ForceRuntime:
             force_n=force, flags=flags, latency=latency or StageLatency(), raw_force_n=raw,
             contact_area_px=area, truth_n=tf.truth_n if tf is not None else None, detail=detail,
         )
-        if force == force:  # an estimate (0 N for no_contact): its error bar (edge/interval.py)
+        if force == force and settled:  # an estimate (0 N for no_contact) judged: its error bar (edge/interval.py)
             self._bound(r)
         return r
 
@@ -603,7 +607,8 @@ class ForceRuntime:
                                                       latency=lat, detail=self._pressed[s.name], area=g.area_px),
                                         start))
                 return None
-            out.append(self._finish(self._reading(s, tf, Flags.NO_CONTACT, 0.0, lat, detail, g.area_px), start))
+            out.append(self._finish(self._reading(s, tf, Flags.NO_CONTACT, 0.0, lat, detail, g.area_px,
+                                                  settled=g.background_ready), start))
             return None
         p = _Pending(s, tf, frame, g, start, lat.source_ms, lat.gate_ms)
         if self._shared[s.name]:
@@ -744,7 +749,8 @@ class ForceRuntime:
             lat = StageLatency(p.source_ms, p.gate_ms, p.depth_ms, inf_ms)
             foreign = self._foreign.get(p.sensor.name, "") if self._foreign else ""
             flags, force, detail = self._judging.estimate(float(raw), p.gate, error, foreign)
-            r = self._reading(p.sensor, p.tf, flags, force, lat, detail, p.gate.area_px, float(raw))
+            r = self._reading(p.sensor, p.tf, flags, force, lat, detail, p.gate.area_px, float(raw),
+                              p.gate.background_ready)
             out.append(self._finish(r, p.start_ns))
 
     def _gate_verdict(self, s: Sensor, tf: TimedFrame, g: GateResult, lat: StageLatency) -> ForceReading:
@@ -761,7 +767,8 @@ class ForceRuntime:
     def _bound(self, r: ForceReading) -> None:
         """Set the reading's force_low_n / force_high_n / interval from the bundle's table:
         no_contact -> [0, the gate-closed bound]; saturated -> open above (+inf); an unknown
-        bin or no table -> NaN bounds, ``unknown``."""
+        bin or no table -> NaN bounds, ``unknown``. Called only for a reading with a force
+        whose frame the gate judged against a settled background (:meth:`_reading`)."""
         iv = self._interval
         if iv is None:
             return

@@ -265,3 +265,24 @@ def test_interrupted_bench_exits_130_and_leaves_no_output(tmp_path):
         assert proc.returncode == code, err
         assert "Traceback" not in err and not out.exists()
         assert not [p for p in tmp_path.iterdir() if p.name.startswith(f".{out.name}.")]
+
+
+def test_bench_reports_the_precision_the_graph_holds_not_the_manifests(tmp_path):
+    """An fp32 graph whose manifest says int8-static is listed as fp32 (what bundle verify finds),
+    and the note says the manifest claims otherwise."""
+    pytest.importorskip("onnx", reason="building the fp32 test graph needs the 'onnx' package (dev extra)")
+    from tactile_force.benchmarks.bench import bench_bundle
+    from tactile_force.edge.bundle import write_bundle
+    from tactile_force.edge.graph_facts import bundle_precision
+
+    from tests.edge.conftest import mean_manifest, mean_model_bytes
+
+    m = mean_manifest("rgbmod", "fp32-says-int8")
+    m.precision = type(m.precision)("int8-static")
+    lie = write_bundle(tmp_path / "lie", mean_model_bytes(20.0, 0.0, False), m).path
+    pool = contact_frames(8)
+    r = bench_bundle(lie, pool, frames=5, repeats=1, warmup=1)
+    assert r.precision == "fp32" == bundle_precision(lie / "model.onnx")
+    assert "the manifest says int8-static but the graph is fp32" in r.note
+    honest = bench_bundle(default_bundle_path(), pool, frames=5, repeats=1, warmup=1)
+    assert honest.precision == "int8-static" and "manifest says" not in honest.note

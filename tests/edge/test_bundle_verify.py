@@ -65,3 +65,76 @@ def test_a_model_file_linked_from_outside_the_bundle_is_refused(make_bundle, tmp
     os.symlink(outside, linked / "model.onnx")
     rc, out = _verify(linked, capsys)
     assert rc == 1 and "outside the bundle" in out and "model.onnx" in out
+
+
+def _edited(src, dest, edit):
+    """A copy of bundle ``src`` whose model.json is changed by ``edit(dict)`` (the ONNX file and
+    its recorded sha256 unchanged: only the manifest's claims differ)."""
+    import json
+
+    shutil.copytree(src, dest)
+    raw = json.loads((dest / "model.json").read_text())
+    edit(raw)
+    (dest / "model.json").write_text(json.dumps(raw, indent=2))
+    return dest
+
+
+def test_a_static_int8_graph_whose_manifest_says_int8_dynamic_fails_verify(tmp_path, capsys, monkeypatch):
+    _no_onnx(monkeypatch)
+    lie = _edited(default_bundle_path(), tmp_path / "claims-dynamic", lambda m: m.update(precision="int8-dynamic"))
+    rc, out = _verify(lie, capsys)
+    assert rc == 1 and "int8-dynamic" in out and "int8-static" in out and "QuantizeLinear" in out, out
+    assert "Traceback" not in out
+
+
+def test_a_manifest_input_scale_contradicting_the_graph_input_fails_verify(tmp_path, capsys, monkeypatch):
+    """The shipped default graph reads 80 x 60 images (input scale 0.25)."""
+    _no_onnx(monkeypatch)
+    half = _edited(default_bundle_path(), tmp_path / "scale-half",
+                   lambda m: m["architecture"].update(input_scale=0.5))
+    rc, out = _verify(half, capsys)
+    assert rc == 1 and "input_scale 0.5" in out and "160 x 120" in out and "80 x 60" in out, out
+    both = _edited(default_bundle_path(), tmp_path / "scale-and-hw",
+                   lambda m: m["architecture"].update(input_scale=0.5, network_input_hw=[160, 120]))
+    rc, out = _verify(both, capsys)
+    assert rc == 1 and "graph input 'rgb' is 80 x 60" in out, out
+    hw = _edited(default_bundle_path(), tmp_path / "hw",
+                 lambda m: m["architecture"].update(network_input_hw=[320, 240]))
+    rc, out = _verify(hw, capsys)
+    assert rc == 1 and "network_input_hw [320, 240]" in out, out
+
+
+def test_the_precision_verify_finds_on_every_kind_of_graph(make_bundle, tmp_path):
+    """One reading of the graph (graph_facts.graph_precision) for verify and bench: the shipped
+    int8-static graphs, an fp32 graph, its fp16 conversion and its dynamic int8 quantization."""
+    import onnx
+    from onnx import TensorProto, helper
+    from onnxruntime.quantization import QuantType, quantize_dynamic
+    from onnxruntime.transformers.float16 import convert_float_to_float16
+    from tactile_force.edge.graph_facts import graph_facts, graph_precision, manifest_problems
+    from tactile_force.edge.scene import shipped_bundles
+
+    for path in shipped_bundles().values():
+        b = load_bundle(path)
+        facts = graph_facts(b.onnx_path)
+        assert graph_precision(facts) == "int8-static" and manifest_problems(b.manifest, facts) == [], path
+    fp32 = load_bundle(make_bundle("verify-kinds"))
+    assert graph_precision(graph_facts(fp32.onnx_path)) == "fp32"
+    model = onnx.load(str(fp32.onnx_path))
+    f16 = tmp_path / "f16.onnx"
+    onnx.save(convert_float_to_float16(model, keep_io_types=True), str(f16))
+    assert graph_precision(graph_facts(f16)) == "fp16"
+    # a graph with a weight matrix (what dynamic quantization turns into MatMulInteger)
+    g = helper.make_graph(
+        [helper.make_node("MatMul", ["x", "w"], ["y"])], "mm",
+        [helper.make_tensor_value_info("x", TensorProto.FLOAT, ["N", 64])],
+        [helper.make_tensor_value_info("y", TensorProto.FLOAT, ["N", 64])],
+        [helper.make_tensor("w", TensorProto.FLOAT, [64, 64], [0.01 * (i % 7) for i in range(64 * 64)])])
+    mm = helper.make_model(g, opset_imports=[helper.make_opsetid("", 17)])
+    mm.ir_version = 8
+    src, dyn = tmp_path / "mm.onnx", tmp_path / "mm_dyn.onnx"
+    onnx.save(mm, str(src))
+    quantize_dynamic(str(src), str(dyn), weight_type=QuantType.QInt8)
+    facts = graph_facts(dyn)
+    assert {"DynamicQuantizeLinear", "MatMulInteger"} <= set(facts.ops) and graph_precision(facts) == "int8-dynamic"
+    assert graph_precision(graph_facts(src)) == "fp32" and list(facts.inputs) == ["x"]

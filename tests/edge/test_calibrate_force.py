@@ -202,3 +202,74 @@ def test_cli_refuses_missing_data_and_existing_out(calibrated, tmp_path, capsys)
                      "--out", str(calibrated)]) == 2
     assert "already exists" in capsys.readouterr().err
     assert json.loads((calibrated / "model.json").read_text()) == before
+
+
+# -- depth bundles: fitted on the depth the runtime makes ------------------------------------
+HOME = "aurova_background_b.png"  # the AUROVA unit untouched
+PRESS = "1520.png"  # 11.88 N
+
+
+def _as_recorded(aurova_dir, dest):
+    """The AUROVA presses as ``record`` writes them: images and forces, no filt_img_depth/."""
+    import shutil
+
+    for sub in ("images", "forces"):
+        shutil.copytree(aurova_dir / sub, dest / sub)
+    assert not (dest / "filt_img_depth").exists()
+    return dest
+
+
+@pytest.mark.parametrize("variant", ["d", "rgbmod_d"])
+def test_a_depth_bundle_is_fitted_on_the_depth_the_runtime_makes(variant, aurova_dir, tmp_path, capsys):
+    """Presses without depth images are accepted; the fit's raw estimates are the runtime's, so the
+    calibrated bundle reads on its own fit frames, through the runtime 'run' builds, exactly what
+    the fitted map gives (the filt_img_depth fit read RE 0.156 through 'run' against 0.008 in the fit)."""
+    from tactile_force.benchmarks.bench import replay_readings
+    from tactile_force.edge.reading import MAX_VALID_FORCE_N
+    from tactile_force.edge.scene import shipped_bundles
+
+    src = shipped_bundles()[variant]
+    data = _as_recorded(aurova_dir, tmp_path / "presses")
+    background = shared_data("digit_backgrounds", HOME)
+    out = tmp_path / "cal"
+    rc = cli_main(["calibrate-force", str(src), "--data", str(data), "--out", str(out), "--background",
+                   str(background)])
+    assert rc == 0, capsys.readouterr().err
+    cal = load_bundle(out).manifest.force_calibration
+    assert cal is not None and cal.frames == 11
+    before = replay_readings(src, data, background)  # the source bundle as 'run' reads these presses
+    raw = np.array([r.raw_force_n for r in before])
+    truth = np.array([r.truth_n for r in before])
+    assert np.all(np.isfinite(raw)) and len(raw) == 11
+    assert cal.loo_before.re_mean == pytest.approx(float(np.mean(np.abs(raw - truth) / truth)), rel=1e-6)
+    after = np.array([r.force_n for r in replay_readings(out, data, background)])
+    fitted = np.clip(cal.apply(raw), 0.0, MAX_VALID_FORCE_N)
+    np.testing.assert_allclose(after, fitted, atol=1e-4)
+
+
+def test_a_depth_bundle_without_a_no_contact_image_is_refused_when_the_presses_give_none(aurova_dir, tmp_path,
+                                                                                      capsys):
+    """The AUROVA grasp starts pressed: learnt from its first frames, the runtime's background holds a
+    press and those frames give no force; too few are left, and the message says what to give."""
+    from tactile_force.edge.scene import shipped_bundles
+
+    out = tmp_path / "cal"
+    rc = cli_main(["calibrate-force", str(shipped_bundles()["d"]), "--data", str(aurova_dir), "--out", str(out)])
+    err = capsys.readouterr().err
+    assert rc == 2 and "only 6 of the 11 presses" in err and "--background" in err and "Traceback" not in err, err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("variant", ["default", "d"])
+def test_a_pressed_background_is_refused(variant, aurova_dir, tmp_path, capsys):
+    """Checked as 'run' checks a given background: against the bundle's no-contact reference (the
+    default bundle's data statistics), else against the lightest press (the d bundle has none)."""
+    from tactile_force.edge.scene import shipped_bundles
+
+    out = tmp_path / "cal"
+    pressed = aurova_dir / "images" / PRESS
+    rc = cli_main(["calibrate-force", str(shipped_bundles()[variant]), "--data", str(aurova_dir), "--out", str(out),
+                   "--background", str(pressed)])
+    err = capsys.readouterr().err
+    assert rc == 2 and "refused" in err and "like a press" in err and str(pressed) in err, err
+    assert not out.exists()

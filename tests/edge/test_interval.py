@@ -263,6 +263,43 @@ def test_no_contact_reading_uses_the_gate_closed_bound():
     assert r.interval is IntervalState.UNKNOWN and math.isnan(r.force_high_n)
 
 
+def test_frames_read_while_the_background_is_learnt_have_no_known_interval(aurova_dir, aurova_background):
+    """No background given: the first frames are averaged into it and not judged; whatever they
+    show (here presses of 1.1-7.4 N), their interval is unknown, never [0, the gate-closed bound]."""
+    from tactile_force.edge.gate import ContactGate
+    from tactile_force.edge.inference import OnnxForceModel
+    from tactile_force.edge.runtime import ForceRuntime, RuntimeOptions, Sensor
+    from tactile_force.edge.scene import default_bundle_path
+    from tactile_force.edge.sources import ReplayFolderSource
+
+    from tests.conftest import ListSource
+
+    model = OnnxForceModel(default_bundle_path())
+    iv = model.bundle.manifest.interval
+    assert iv is not None and iv.no_contact_bounds()[2] is IntervalState.KNOWN  # a bound the gate-closed frames get
+
+    def readings(source):
+        rt = ForceRuntime([Sensor("left", source, ContactGate())], model, RuntimeOptions(deadline_ms=1e9),
+                          owns_model=False)
+        try:
+            return [r for _ in range(20) for r in rt.step()]
+        finally:
+            rt.close()
+
+    learning = [r for r in readings(ReplayFolderSource(aurova_dir)) if r.detail == "learning background"]
+    assert len(learning) == ContactGate().options.background_frames
+    assert all(r.truth_n > 1.0 for r in learning)
+    for r in learning:
+        assert Flags.NO_CONTACT in r.flags and r.interval is IntervalState.UNKNOWN, r
+        assert math.isnan(r.force_low_n) and math.isnan(r.force_high_n)
+    # once the background is settled, a frame judged without contact gets the gate-closed bound
+    n = ContactGate().options.background_frames
+    out = readings(ListSource([aurova_background[0]] * (n + 2)))
+    assert [r.interval for r in out] == [IntervalState.UNKNOWN] * n + [IntervalState.KNOWN] * 2
+    assert (out[-1].force_low_n, out[-1].force_high_n, out[-1].interval) == iv.no_contact_bounds()
+    model.close()
+
+
 # -- calibrate-force replaces the interval ---------------------------------------------------------
 def test_calibrate_force_replaces_the_interval(tmp_path, aurova_dir):
     from tactile_force.edge.calibrate_force import calibrate_bundle
