@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from tactile_force.edge.cli_args import positive_float
+from tactile_force.edge.cli_args import positive_float, positive_int
 from tactile_force.edge.errors import TactileForceError
 
 
@@ -29,7 +29,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--epochs", type=int, default=30, help="training epochs per student (default 30)")
     parser.add_argument("--max-frames", type=int, default=6000, help="unlabelled frames used at most (default 6000)")
     parser.add_argument("--no-augment", action="store_true", help="no LED gain/offset, noise and shift augmentation")
-    parser.add_argument("--threads", type=int, default=None, help="torch threads for training (default: all cores)")
+    parser.add_argument("--threads", type=positive_int, default=None,
+                        help="torch threads for training (default: all cores)")
     parser.add_argument("--max-vs-teacher-re", type=float, default=0.25,
                         help="largest RE against the teacher (held-out unlabelled frames) a student may have to be "
                              "written (default 0.25); when none is within it, no bundle is written (exit code 1)")

@@ -338,6 +338,8 @@ def compress_model(o: CompressOptions) -> CompressResult:
     for r in o.ladder:
         if not (0 < r.width <= 4) or r.k < 1 or FRAME_SHAPE[0] % r.k or FRAME_SHAPE[1] % r.k:
             raise CompressError(f"ladder {r.width:g}x{r.k}: expected 0 < width <= 4 and k dividing 320 and 240")
+    # the training options are checked here too (threads), before any work
+    topt = TrainOptions(epochs=o.epochs, lr=o.lr, batch=o.batch, seed=o.seed, threads=o.threads, augment=o.augment)
     out = Path(o.out)
     work = out / "work"
     show = o.show_progress
@@ -367,7 +369,6 @@ def compress_model(o: CompressOptions) -> CompressResult:
     train = Frames({"rgb": np.concatenate([frames[tr_idx], lab_frames[lab_tr]])},
                    np.concatenate([t_frames[tr_idx], lab_forces[lab_tr]]).astype(np.float32))
     val = Frames({"rgb": frames[val_idx]}, t_frames[val_idx])
-    topt = TrainOptions(epochs=o.epochs, lr=o.lr, batch=o.batch, seed=o.seed, threads=o.threads, augment=o.augment)
     lab_key = frames_digest(lab_frames, lab_forces) if len(lab_forces) else ""
     run_key = hashlib.sha256(json.dumps([key, lab_key, o.seed, o.val_share, asdict(topt)],
                                         default=str).encode()).hexdigest()[:16]

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import torch
+from tactile_force.edge.errors import OptionsError
 from tactile_force.edge.metrics import error_stats
 from torch import nn
 
@@ -55,6 +56,12 @@ class TrainOptions:
     threads: int | None = None
     augment: Augment | None = None
     eval_batch: int = 256
+
+    def __post_init__(self) -> None:
+        if self.threads is not None and (isinstance(self.threads, bool) or not isinstance(self.threads, int)
+                                         or self.threads < 1):
+            raise OptionsError(f"threads {self.threads!r}: expected a positive integer (torch threads for "
+                               "training) or None (all cores)")
 
 
 @dataclass
@@ -95,7 +102,14 @@ class TrainResult:
 
 
 def preprocess(net: ForceNet, inputs: dict[str, np.ndarray], chunk: int = 256) -> list[torch.Tensor]:
-    """Network inputs (float32 NCHW, in forward order) of raw uint8 frames, through ``net.pre``."""
+    """Network inputs (float32 NCHW, contiguous, in forward order) of raw uint8 frames, through ``net.pre``.
+
+    ``net.pre`` permutes NHWC frames, so its output is laid out channels-last; it is copied to
+    plain NCHW here. With a channels-last input every layer runs channels-last, and oneDNN's
+    channels-last convolution backward writes out of bounds with more than one thread on some
+    shapes (a 1x1 stride-2 convolution of 8 channels at 10x8 on an odd-sized batch, in the
+    width-0.125 RGBmod at input 1/8): the process aborts (double free) or segfaults.
+    """
     xs = []
     with torch.no_grad():
         for name in net.input_names:
@@ -103,7 +117,7 @@ def preprocess(net: ForceNet, inputs: dict[str, np.ndarray], chunk: int = 256) -
             n = src.shape[0]
             parts = [net.pre[name](torch.from_numpy(np.ascontiguousarray(src[i:i + chunk])))
                      for i in range(0, n, chunk)]
-            xs.append(torch.cat(parts) if parts else torch.empty(0))
+            xs.append(torch.cat(parts).contiguous() if parts else torch.empty(0))
     return xs
 
 
@@ -157,7 +171,7 @@ def train_network(spec: ModelSpec, train: Frames, val: Frames, options: TrainOpt
     o = options or TrainOptions()
     torch.manual_seed(o.seed)
     np.random.seed(o.seed)
-    torch.set_num_threads(max(1, o.threads or os.cpu_count() or 1))
+    torch.set_num_threads(o.threads or os.cpu_count() or 1)
     net = ForceNet(build_model(spec.variant, spec.width), spec)
     x_tr, x_va = preprocess(net, train.inputs), preprocess(net, val.inputs)
     y_tr = torch.from_numpy(np.asarray(train.targets, np.float32))

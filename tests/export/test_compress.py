@@ -129,3 +129,40 @@ def test_cli_bad_input_exits_2(setup, tmp_path, capsys):
     assert cli_main(["compress", str(tmp_path / "nope.pth"), "--frames", str(unl), "--out", str(tmp_path / "o")]) == 2
     assert cli_main(["compress", str(teacher), "--frames", str(unl), "--out", str(tmp_path / "o"),
                      "--ladder", "0.25by4"]) == 2
+
+
+def test_cli_with_default_threads_ends_normally(tmp_path):
+    """The CLI end to end with torch's default threads (all cores), in its own process: a native
+    crash there takes the process down. 60 frames leave 51 training frames, one odd-sized batch:
+    on a 2-core host the width-0.125 student's training used to corrupt the heap every time."""
+    import subprocess
+    import sys
+
+    from tactile_force.edge import AuthorsDataset
+
+    data = generate_dataset(tmp_path / "frames", DatasetOptions(n=60, seed=0, progress=False)).root
+    ds = AuthorsDataset(data)
+    f = Frames({"rgb": np.stack([ds.load(n).frame for n in ds.ids])}, ds.forces().astype(np.float32))
+    spec = ModelSpec("rgbmod", 0.125, 1 / 8)
+    teacher = save_checkpoint(tmp_path / "teacher.pth", train_network(
+        spec, f, f, TrainOptions(epochs=1, batch=16, seed=0, threads=1)).model, spec)
+    out = tmp_path / "out"
+    run = subprocess.run([sys.executable, "-m", "tactile_force.edge.cli", "compress", str(teacher),
+                          "--frames", str(Path(data) / "images"), "--out", str(out), "--ladder", "0.125x8",
+                          "--epochs", "1", "--budget-ms", "1e6", "--max-vs-teacher-re", "1e9"],
+                         capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert load_bundle(out / "bundle").manifest.precision.value == "int8-static"
+
+
+def test_threads_is_validated_before_any_work(tmp_path, capsys):
+    out = tmp_path / "o"
+    assert cli_main(["compress", str(tmp_path / "t.pth"), "--frames", str(tmp_path), "--out", str(out),
+                     "--threads", "0"]) == 2
+    err = capsys.readouterr().err
+    assert "--threads" in err and "expected an integer >= 1" in err and "Traceback" not in err
+    from tactile_force.edge.errors import OptionsError
+
+    with pytest.raises(OptionsError, match="threads"):
+        compress_model(CompressOptions(teacher=tmp_path / "t.pth", frames=[tmp_path], out=out, threads=-1))
+    assert not out.exists()

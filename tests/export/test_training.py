@@ -3,10 +3,14 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import torch
 
+from tactile_force.edge.errors import OptionsError
 from tactile_force.export import ModelSpec
-from tactile_force.export.training import Augment, Frames, TrainOptions, augment_batch, train_network
+from tactile_force.export.preprocess import ForceNet
+from tactile_force.export.training import Augment, Frames, TrainOptions, augment_batch, preprocess, train_network
+from tactile_force.export.zoo import build_model
 
 
 def _frames(n: int, seed: int) -> Frames:
@@ -41,3 +45,17 @@ def test_augmentation_keeps_shape_and_stays_close():
     assert float((y - x).abs().mean()) < 0.1
     same = augment_batch(x, Augment(gain=0, offset=0, noise=0, shift_px=0), gen)
     assert torch.equal(same, x)
+
+
+def test_network_inputs_are_plain_nchw():
+    # channels-last inputs send training through oneDNN kernels that corrupt the heap on some shapes
+    spec = ModelSpec("rgbmod", 0.125, 1 / 8)
+    net = ForceNet(build_model(spec.variant, spec.width), spec)
+    (x,) = preprocess(net, _frames(5, 0).inputs)
+    assert x.shape == (5, 3, 40, 30) and x.is_contiguous()
+
+
+@pytest.mark.parametrize("threads", [0, -2, 1.5, "2", True])
+def test_threads_must_be_a_positive_integer(threads):
+    with pytest.raises(OptionsError, match="threads"):
+        TrainOptions(threads=threads)
