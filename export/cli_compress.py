@@ -34,9 +34,36 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--max-vs-teacher-re", type=float, default=0.25,
                         help="largest RE against the teacher (held-out unlabelled frames) a student may have to be "
                              "written (default 0.25); when none is within it, no bundle is written (exit code 1)")
+    parser.add_argument("--force", action="store_true",
+                        help="replace the finished result (bundle/, compress.json) of an earlier compress in --out "
+                             "(its trained students in work/ are reused)")
     parser.add_argument("--background", default=None,
                         help="no-contact frame of the --frames sensor: the bundle's data statistics then also record "
                              "contact sizes (without it: colours only, the out-of-distribution check)")
+
+
+#: what compress writes in --out: everything else there is the user's and never touched
+COMPRESS_ENTRIES = ("work", "bundle", "compress.json", "students.png")
+
+
+def check_compress_folder(out: Path, force: bool) -> None:
+    """Refuse an ``--out`` that is not compress's own: a folder holding other files, or a
+    finished result (``compress.json``) without ``--force``. An interrupted run's folder (only
+    ``work/``) is resumed."""
+    from tactile_force.edge.output_guard import OutputRefused
+
+    if not out.is_dir():
+        return
+    ours = set(COMPRESS_ENTRIES)
+    foreign = sorted(e.name for e in out.iterdir()  # also the hidden siblings its atomic writes leave when killed
+                     if e.name not in ours and not any(e.name.startswith(f".{n}.") for n in ours))
+    if foreign:
+        shown = ", ".join(foreign[:3]) + (f" and {len(foreign) - 3} more" if len(foreign) > 3 else "")
+        raise OutputRefused(f"--out {out}: holds files that compress did not write ({shown}); expected a new folder "
+                            "or an earlier compress --out")
+    if (out / "compress.json").exists() and not force:
+        raise OutputRefused(f"--out {out}: holds a finished compress result (compress.json, bundle/); pass --force "
+                            "to replace it (the trained students in work/ are reused), or give a new folder")
 
 
 def students_plot(students: list[dict], budget_ms: float, out: str) -> Path:
@@ -69,6 +96,7 @@ def main(args: argparse.Namespace) -> int:
     check_output(args.out, [("teacher", args.teacher), ("--labels", args.labels),
                             ("--background", getattr(args, "background", None))]
                  + [("--frames", f) for f in args.frames], kind=OutputKind.FOLDER, allow_existing=True)
+    check_compress_folder(Path(args.out), force=getattr(args, "force", False))
     try:
         if args.epochs < 1 or args.max_frames < 20:
             raise CompressError("--epochs must be >= 1 and --max-frames >= 20")
@@ -84,9 +112,9 @@ def main(args: argparse.Namespace) -> int:
         print(f"tactile-force compress: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print(f"tactile-force compress: interrupted; finished students are kept in {args.out}/work and a rerun "
-              "of the same command resumes", file=sys.stderr)
-        return 130
+        print(f"tactile-force compress: interrupted; no result written (finished students are kept in "
+              f"{args.out}/work and a rerun of the same command resumes)", file=sys.stderr)
+        raise
     except TactileForceError:
         raise
     for r in result.students:

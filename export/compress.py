@@ -35,6 +35,7 @@ import json
 import math
 import os
 import platform
+import shutil
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
@@ -414,6 +415,8 @@ def compress_model(o: CompressOptions) -> CompressResult:
     bundle = None
     if chosen is not None:
         bundle = _write_final(out / "bundle", chosen, teacher, frames_desc, len(frames), o, records, data_stats)
+    elif (out / "bundle" / "model.json").is_file():  # an earlier run's choice must not look like this run's
+        shutil.rmtree(out / "bundle")
     summary = out / "compress.json"
     _write_json(summary, {"teacher": {"source": teacher.source, "kind": teacher.kind, "sha256": teacher.sha256},
                           "frames": frames_desc, "labels": str(o.labels) if o.labels else None,

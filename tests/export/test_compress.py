@@ -153,6 +153,30 @@ def test_cli_with_default_threads_ends_normally(tmp_path):
                          capture_output=True, text=True)
     assert run.returncode == 0, run.stderr[-2000:]
     assert load_bundle(out / "bundle").manifest.precision.value == "int8-static"
+    # a finished result is replaced only with --force; a folder of other files never; SIGTERM: 143
+    argv = [sys.executable, "-m", "tactile_force.edge.cli", "compress", str(teacher), "--frames",
+            str(Path(data) / "images"), "--ladder", "0.125x8", "--epochs", "1", "--budget-ms", "1e6",
+            "--max-vs-teacher-re", "1e9"]
+    again = subprocess.run([*argv, "--out", str(out)], capture_output=True, text=True)
+    assert again.returncode == 2 and "--force" in again.stderr and "Traceback" not in again.stderr
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("keep")
+    other = subprocess.run([*argv, "--out", str(mine), "--force"], capture_output=True, text=True)
+    assert other.returncode == 2 and "notes.txt" in other.stderr and (mine / "notes.txt").read_text() == "keep"
+    import signal
+    import time
+
+    fresh = tmp_path / "fresh"
+    proc = subprocess.Popen([*argv, "--out", str(fresh)], stderr=subprocess.PIPE, text=True)
+    end = time.monotonic() + 120
+    while time.monotonic() < end and not (fresh / "work").is_dir():
+        time.sleep(0.05)
+    time.sleep(0.5)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 143, err[-2000:]
+    assert not (fresh / "compress.json").exists() and not (fresh / "bundle").exists()
 
 
 def test_threads_is_validated_before_any_work(tmp_path, capsys):
