@@ -32,6 +32,7 @@ fields; the message is prefixed with the dataclass's path.
 
 from __future__ import annotations
 
+import collections.abc
 import dataclasses
 import enum
 import math
@@ -42,6 +43,8 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal, TypeVar, Union
+
+from .errors import ArgumentTypeError
 
 T = TypeVar("T")
 
@@ -139,9 +142,12 @@ def _expect(tp: Any, chk: Check, ctx: _Context, value: object, path: str) -> Typ
     return _fail(path, f"expected {describe_type(tp, chk, ctx.table)}, got {_describe(value)}")
 
 
-def describe_type(tp: Any, chk: Check = NO_CHECK, table: str = "an object") -> str:
+def describe_type(tp: Any, chk: Check = NO_CHECK, table: str | None = "an object") -> str:
     """What a value of annotation ``tp`` with constraints ``chk`` must be, in words
-    (``"a number > 0"``, ``"one of 'cpu', 'oak'"``, ``"a list of an integer"``)."""
+    (``"a number > 0"``, ``"one of 'cpu', 'oak'"``, ``"a list of an integer"``).
+
+    ``table`` names a nested object (``"an object"`` in JSON, ``"a table"`` in TOML); None
+    names Python values instead (``"a GateOptions"``, ``"None"``), for argument checks."""
     if chk.expected:
         return chk.expected
     if chk.choices is not None:
@@ -154,17 +160,28 @@ def describe_type(tp: Any, chk: Check = NO_CHECK, table: str = "an object") -> s
         return "one of " + ", ".join(map(repr, typing.get_args(tp)))
     if origin is list:
         return f"a list of {describe_type(typing.get_args(tp)[0], NO_CHECK, table)}"
-    if origin is dict or (isinstance(tp, type) and dataclasses.is_dataclass(tp)):
-        return table
+    if origin is tuple:
+        args = typing.get_args(tp)
+        if len(args) == 2 and args[1] is Ellipsis:
+            return f"a tuple of {describe_type(args[0], NO_CHECK, table)}"
+        return f"a tuple of {len(args)} values ({', '.join(describe_type(a, NO_CHECK, table) for a in args)})"
+    if origin is collections.abc.Callable or tp is collections.abc.Callable:
+        return "a callable"
     if tp is type(None):
-        return "null"
+        return "null" if table is not None else "None"
+    if origin is dict or (isinstance(tp, type) and dataclasses.is_dataclass(tp)):
+        if table is not None:
+            return table
+        return "a dict" if origin is dict else f"a {tp.__name__}"
     if isinstance(tp, type) and issubclass(tp, enum.Enum):
         return "one of " + ", ".join(repr(m.value) for m in tp)
     if tp in (int, float):
         return ("an integer" if tp is int else "a number") + (f" {rng}" if rng else "")
-    if tp is Path:
+    if tp is Path or tp is os.PathLike:
         return "an output file path" if chk.path == "output" else "a path"
-    return {bool: "true or false", str: "a non-empty string" if chk.nonempty else "a string"}.get(tp, repr(tp))
+    if tp in (bool, str):
+        return {bool: "true or false", str: "a non-empty string" if chk.nonempty else "a string"}[tp]
+    return f"a {tp.__name__}" if isinstance(tp, type) else repr(tp)
 
 
 def _literal(tp: Any, value: object) -> bool:
@@ -269,7 +286,8 @@ def _checked(out: Any, tp: Any, chk: Check, ctx: _Context, path: str, raw: objec
 _HINTS: dict[type, dict[str, Any]] = {}
 
 
-def _hints(cls: type) -> dict[str, Any]:
+def type_hints(cls: type) -> dict[str, Any]:
+    """The evaluated field annotations of dataclass ``cls`` (cached per class)."""
     if cls not in _HINTS:
         _HINTS[cls] = typing.get_type_hints(cls)
     return _HINTS[cls]
@@ -297,7 +315,7 @@ def _from_json(cls: type[T], raw: object, path: str, ctx: _Context, defaults: T 
     fields = {f.name: f for f in dataclasses.fields(cls) if f.init}  # type: ignore[arg-type]
     if (err := unknown_keys(raw, fields, path)) is not None:
         raise err
-    hints = _hints(cls)
+    hints = type_hints(cls)
     kwargs = {}
     for name, f in fields.items():
         sub = f"{path}.{name}" if path else name
@@ -307,7 +325,10 @@ def _from_json(cls: type[T], raw: object, path: str, ctx: _Context, defaults: T 
                 raise _fail(sub, f"missing; expected {describe_type(hints[name], chk, ctx.table)}")
             continue
         kwargs[name] = _convert(hints[name], raw[name], sub, chk, ctx)
-    obj = dataclasses.replace(defaults, **kwargs) if defaults is not None else cls(**kwargs)  # type: ignore[type-var]
+    try:  # a record that checks its own fields on construction (__post_init__) names them
+        obj = dataclasses.replace(defaults, **kwargs) if defaults is not None else cls(**kwargs)  # type: ignore[type-var]
+    except (ArgumentTypeError, ValueError) as exc:
+        raise _fail(path, str(exc)) from None
     fn = getattr(obj, "check", None)
     if callable(fn):
         try:
