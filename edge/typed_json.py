@@ -22,8 +22,9 @@ Constraints are declared on the field, one documented way::
     source: str = field(metadata=check(choices=("camera", "replay")))
 
 (see :func:`check`). ``Path`` fields are read from non-empty strings with ``~`` and
-``$VARS`` expanded: input paths relative to the ``base`` folder given to :func:`from_json`
-(the scene file's folder), or under a ``prefixes`` root (``package:FILE``); output paths
+``$VARS`` expanded (a variable that is not set is an error naming it, never left in the
+path): input paths relative to the ``base`` folder given to :func:`from_json` (the scene
+file's folder), or under a ``prefixes`` root (``package:FILE``); output paths
 (``check(path="output")``) relative to the working directory.
 
 A dataclass may define ``check(self) -> None`` raising ``ValueError`` for rules that span
@@ -37,6 +38,7 @@ import dataclasses
 import enum
 import math
 import os
+import re
 import types
 import typing
 from collections.abc import Callable, Mapping
@@ -188,11 +190,34 @@ def _literal(tp: Any, value: object) -> bool:
     return any(type(value) is type(a) and value == a for a in typing.get_args(tp))
 
 
+#: ``$NAME`` or ``${NAME}``, as :func:`os.path.expandvars` finds them.
+_VARIABLE = re.compile(r"\$(\w+|\{([^}]*)\})", re.ASCII)
+
+
+def unset_variable(text: str) -> str | None:
+    """The first ``$NAME`` / ``${NAME}`` in ``text`` that is not set in the environment
+    (as written, e.g. ``"$OUT_DIR"``), else None. :func:`os.path.expandvars` leaves such a
+    variable in the path as it is, so the path would point somewhere the user did not mean."""
+    for m in _VARIABLE.finditer(text):
+        name = m.group(2) if m.group(2) is not None else m.group(1)
+        if name not in os.environ:
+            return m.group(0)
+    return None
+
+
+def expand_path(text: str) -> Path:
+    """``text`` with ``~`` and ``$VARS`` expanded; ValueError naming the variable when one is
+    not set (see :func:`unset_variable`)."""
+    if (var := unset_variable(text)) is not None:
+        raise ValueError(f"environment variable {var} is not set (in {text!r}); set it, or write the path out")
+    return Path(os.path.expandvars(os.path.expanduser(text)))
+
+
 def _path(value: str, chk: Check, ctx: _Context) -> Path:
     for prefix, root in ctx.prefixes.items():
         if value.startswith(prefix):
             return root / value[len(prefix):]
-    p = Path(os.path.expandvars(os.path.expanduser(value)))
+    p = expand_path(value)
     if chk.path == "output":
         return p.absolute()
     if p.is_absolute() or ctx.base is None:
@@ -273,7 +298,12 @@ def _convert(tp: Any, value: object, path: str, chk: Check, ctx: _Context) -> An
             raise _fail(path, f"is empty; expected {describe_type(tp, chk, ctx.table)}")
         if chk.choices is not None and value not in chk.choices:
             raise _expect(tp, chk, ctx, value, path)
-        return _checked(_path(value, chk, ctx) if tp is Path else value, tp, chk, ctx, path, value)
+        if tp is Path:
+            try:
+                return _checked(_path(value, chk, ctx), tp, chk, ctx, path, value)
+            except ValueError as exc:  # an unset $VARIABLE
+                raise _fail(path, str(exc)) from None
+        return _checked(value, tp, chk, ctx, path, value)
     raise TypeError(f"{path}: typed_json does not support the annotation {tp!r}")  # a bug in a record class
 
 

@@ -69,7 +69,7 @@ def scene_to_toml(scene: Scene) -> str:
 
 def save_scene(scene: Scene, path: str | os.PathLike) -> Path:
     """Write :func:`scene_to_toml` to ``path`` (relative to the working directory)."""
-    p = _out_path(str(path))
+    p = _out_path(str(path), "--save-scene")
     if problem := output_problem(p):
         raise SceneError(f"--save-scene: {problem}")
     p.parent.mkdir(parents=True, exist_ok=True)
