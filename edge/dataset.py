@@ -184,8 +184,8 @@ def read_image(path: Path, channels: int = 3, shape: tuple[int, int, int] | None
     has another channel count: a colour image is never silently turned grey, nor a grey one
     colour.
     """
-    if (problem := _open_problem(path)) is not None:
-        raise DatasetError(f"{path}: image {problem}")
+    if not path.is_file():  # one stat, as every frame of a replay comes here (a FIFO would block the decoder)
+        raise DatasetError(f"{path}: image {_open_problem(path) or 'not a regular file'}")
     img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
     if img is None:
         raise DatasetError(f"{path}: cannot decode image (empty, truncated or not an image)")
