@@ -396,7 +396,7 @@ class ForceRuntime:
         names = [s.name for s in sensors]
         if len(set(names)) != len(names):
             raise OptionsError(f"ForceRuntime.sensors: names {names}; expected unique names")
-        self.sensors = list(sensors)
+        self.sensors = sensors if isinstance(sensors, list) else list(sensors)
         self.model = model
         self.owns_model = bool(owns_model)
         self._closed = False
