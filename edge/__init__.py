@@ -16,10 +16,12 @@ from typing import TYPE_CHECKING, Any
 from .bundle import Bundle, load_bundle, read_manifest, sha256_file, write_bundle
 from .errors import (
     AcceleratorUnavailableError,
+    ArgumentTypeError,
     BundleError,
     DatasetError,
     FrameError,
     MissingExtraError,
+    OptionsError,
     SceneError,
     SourceError,
     TactileForceError,
@@ -72,13 +74,15 @@ def __dir__() -> list[str]:
 
 __all__ = [
     "ForceInterval", "IntervalState", "fit_interval",
-    "AcceleratorUnavailableError", "AuthorsDataset", "AuthorsDatasetWriter", "Bundle", "BundleError",
+    "AcceleratorUnavailableError", "ArgumentTypeError", "AuthorsDataset", "AuthorsDatasetWriter", "Bundle",
+    "BundleError",
     "CameraSource", "ContactGate", "ContactSpec", "CsvWriter", "DEPTH_VARIANTS", "DataStats", "DatasetError",
     "DatasetOptions", "DatasetSummary", "DepthOptions", "DepthResult", "DepthStage", "ErrorReport", "ErrorStats",
     "FRAME_SHAPE", "Flags", "ForceCalibration", "ForceReading", "ForceRuntime", "FrameError", "FrameSource",
     "GateOptions", "GateResult", "IndenterSplit", "InputKind", "JsonlWriter", "LadderChoice", "MAX_VALID_FORCE_N",
     "MIN_VALID_FORCE_N", "Manifest", "MaxDeformationBaseline", "MissingExtraError", "NormalLUT", "OnnxForceModel",
-    "PRECISIONS", "Precision", "ReplayFolderSource", "RuntimeOptions", "RuntimeStats", "Sample", "Scene",
+    "OptionsError", "PRECISIONS", "Precision", "ReplayFolderSource", "RuntimeOptions", "RuntimeStats", "Sample",
+    "Scene",
     "SceneError", "Sensor", "SourceError", "SourceStats", "StageLatency", "StdoutWriter", "StreamLost",
     "SyntheticFrame", "TactileForceError", "TimedFrame", "VARIANTS", "Variant", "VideoFileSource", "VirtualDigit",
     "VirtualDigitOptions", "VirtualDigitSource", "build_scene", "check_frame", "choose_bundle",

@@ -65,6 +65,14 @@ def _check_args(args: argparse.Namespace) -> list[Path]:
     if args.data is not None and not args.data.is_dir():
         raise BenchInputError(f"--data {args.data}: folder not found (expected the authors' layout: images/N.png + "
                               "forces/force_N.txt)")
+    if args.data is not None:  # its frames judged now, as the replay will (before any measurement)
+        from .errors import SourceError
+        from .sources import ReplayFolderSource
+
+        try:
+            ReplayFolderSource(args.data).close()
+        except SourceError as exc:
+            raise BenchInputError(f"--data: {exc}") from None
     if args.background is not None and not args.background.exists():
         raise BenchInputError(f"--background {args.background}: not found (expected a no-contact image)")
     from .output_guard import OutputKind, check_output

@@ -33,46 +33,25 @@ PLOT_NAME = "force_vs_time.png"
 # -- scene show ---------------------------------------------------------------------------
 def configure_scene(p: argparse.ArgumentParser) -> None:
     sub = p.add_subparsers(dest="action", required=True)
-    show = sub.add_parser("show", help="print the stages the scene will run (opens no device, loads no model); "
-                                       "exit 2 when a file it names is missing or unusable")
+    show = sub.add_parser("show", help="print the stages the scene will run and make every check 'run' makes before "
+                                       "it opens a device (opens no device, loads no model); exit 2, as 'run' would, "
+                                       "when it would refuse the scene")
     show.add_argument("file", help="scene TOML file")
-
-
-def depth_problems(scene) -> list[str]:
-    """Why the depth stage of a depth-bundle scene could not be built (mapping missing,
-    paper mode with a LUT, bad options), one message each; [] for RGB-only bundles."""
-    from .bundle import load_bundle
-    from .errors import BundleError, SceneError
-    from .runtime import build_depth_stage
-
-    out = []
-    for b in scene.bundles:
-        try:
-            bundle = load_bundle(b)
-        except BundleError:
-            continue  # reported by bundle_problems
-        if not bundle.manifest.needs_depth:
-            continue
-        try:
-            build_depth_stage(scene.depth, bundle.manifest)
-        except SceneError as exc:  # names the key: depth.mapping, depth
-            out.append(f"{scene.origin}: {exc}")
-        except Exception as exc:  # noqa: BLE001 - any reason the stage cannot be built is a problem to show
-            out.append(f"{scene.origin}: depth: {exc}")
-        break
-    return out
+    show.add_argument("--force", action="store_true",
+                      help="check as 'run --force' would (existing outputs may be replaced, never an input)")
 
 
 def main_scene(args: argparse.Namespace) -> int:
-    from .scene import bundle_problems, describe_scene, load_scene, scene_problems
+    from .scene import describe_scene, load_scene
+    from .scene.preflight import run_refusals
 
     scene = load_scene(args.file, check=False)
     print("\n".join(describe_scene(scene)))
-    problems = scene_problems(scene) + bundle_problems(scene) + depth_problems(scene)
+    problems = run_refusals(scene, args.file, force=getattr(args, "force", False))
     for p in problems:
         print(f"error: {p}", file=sys.stderr)
     if problems:
-        print(f"scene {scene.origin}: {len(problems)} problem(s); 'tactile-force run' would stop on them",
+        print(f"scene {scene.origin}: {len(problems)} problem(s); 'tactile-force run' would stop on them (exit 2)",
               file=sys.stderr)
         return 2
     return 0
@@ -224,8 +203,11 @@ class SignalStop:
 
 
 def _run_scene(args: argparse.Namespace):
-    """The validated Scene for ``run``'s flags (from --scene, or built from --source)."""
-    from .scene import check_scene, load_scene, scene_from_flags
+    """The validated Scene for ``run``'s flags (from --scene, or built from --source): every
+    check of :func:`~tactile_force.edge.scene.preflight.run_refusals` (the ones ``scene show``
+    makes) passed, else SceneError listing what it refuses."""
+    from .scene import load_scene, scene_from_flags
+    from .scene.preflight import run_refusals
 
     given = [f"--{k.replace('_', '-')}" for k in ("bundle", "background", "fps", "ros2", "depth_mapping")
              if getattr(args, k, None) is not None] + (["--out"] if args.out else []) \
@@ -235,8 +217,8 @@ def _run_scene(args: argparse.Namespace):
     if args.scene:
         if given:
             raise SceneError(f"{', '.join(given)}: only with --source; a scene file sets these itself")
-        scene = load_scene(args.scene)
-        _guard_scene_outputs(scene, args.scene, force=getattr(args, "force", False))
+        scene = load_scene(args.scene, check=False)
+        _refuse(run_refusals(scene, args.scene, force=getattr(args, "force", False)))
         return scene
     if not args.source:
         raise SceneError("give --scene FILE, or --source SRC [--bundle B] (see tactile-force run --help)")
@@ -256,31 +238,15 @@ def _run_scene(args: argparse.Namespace):
                              depth_mapping=getattr(args, "depth_mapping", None))
     if scene.sensors[0].kind.live:
         scene.outputs[0].live = True
-    check_scene(scene)
     _check_depth_mapping(scene)
+    _refuse(run_refusals(scene))
     return scene
 
 
-def scene_inputs(scene, scene_file: str | None) -> list[tuple[str, str | os.PathLike | None]]:
-    """Every path a scene reads, as (what gave it, path): the scene file, its bundles, depth
-    mapping, replay folders and backgrounds. No output may be, hold or lie inside one of them."""
-    inputs: list[tuple[str, str | os.PathLike | None]] = [("--scene", scene_file)]
-    inputs += [("bundle", b) for b in scene.bundles if str(b) != "default"]
-    inputs.append(("depth mapping", getattr(scene.depth, "mapping", None)))
-    for s in scene.sensors:
-        inputs += [(f"sensor {s.name} path", s.path), (f"sensor {s.name} background", s.background)]
-    return inputs
-
-
-def _guard_scene_outputs(scene, scene_file: str, force: bool) -> None:
-    """The output guard for a scene file's file outputs (csv, jsonl, mcap): an existing file
-    needs ``--force``, and no output may be or lie inside one of the scene's inputs."""
-    from .output_guard import OutputKind, check_output
-
-    inputs = scene_inputs(scene, scene_file)
-    for k, o in enumerate(scene.outputs):
-        if o.path is not None and o.kind in ("csv", "jsonl", "mcap"):
-            check_output(o.path, inputs, force=force, kind=OutputKind.FILE, flag=f"{scene_file}: output[{k}].path")
+def _refuse(problems: list[str]) -> None:
+    """SceneError listing every problem (exit 2), when there is one."""
+    if problems:
+        raise SceneError("; ".join(problems))
 
 
 def _check_depth_mapping(scene) -> None:
@@ -309,6 +275,7 @@ def main_run(args: argparse.Namespace) -> int:
     scene = _run_scene(args)
     if args.save_scene:
         from .output_guard import OutputKind, check_output
+        from .scene.preflight import scene_inputs
 
         inputs = [*scene_inputs(scene, args.scene), ("--source", args.source), ("--bundle", args.bundle),
                   ("--background", args.background), ("--depth-mapping", getattr(args, "depth_mapping", None))]

@@ -17,6 +17,7 @@ import errno
 import json
 import os
 import re
+import struct
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -25,10 +26,13 @@ from typing import TextIO
 import cv2
 import numpy as np
 
+from .checks import expect
 from .errors import DatasetError
+from .frames import FRAME_SHAPE, frame_layout_problem
 from .labels import LabelError, check_force, read_force_file, read_meta
 
-__all__ = ["AuthorsDataset", "AuthorsDatasetWriter", "LabelError", "Sample", "read_force_file", "read_image"]
+__all__ = ["AuthorsDataset", "AuthorsDatasetWriter", "LabelError", "Sample", "check_image_file", "read_force_file",
+           "read_image"]
 
 _IMG_RE = re.compile(r"^(\d+)\.png$")
 #: Image suffixes that are not the layout's PNG: such a file in images/ is refused, never skipped.
@@ -90,33 +94,125 @@ class Sample:
     meta: dict = field(default_factory=dict)
 
 
-def read_image(path: Path, channels: int = 3) -> np.ndarray:
-    """Read an 8-bit PNG with ``channels`` channels (3: BGR frame HxWx3, 1: depth image HxW).
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+#: PNG colour type -> channels OpenCV decodes it to (IMREAD_UNCHANGED); palette (3) and
+#: grey + alpha (4) images are decoded to be sure.
+_PNG_CHANNELS = {0: 1, 2: 3, 6: 4}
 
-    DatasetError naming the file if it is missing, undecodable, 16-bit, or has another
-    channel count: a colour image is never silently turned grey, nor a grey one colour.
-    """
+
+def _png_layout(data: bytes) -> tuple[tuple[int, ...], np.dtype] | None:
+    """(shape, dtype) OpenCV decodes a PNG to, from its first 26 bytes (signature + IHDR),
+    or None when the header does not settle it (not a PNG, a palette or grey + alpha image)."""
+    if len(data) < 26 or data[:8] != _PNG_SIGNATURE or data[12:16] != b"IHDR":
+        return None
+    width, height = struct.unpack(">II", data[16:24])
+    bits, colour = data[24], data[25]
+    channels = _PNG_CHANNELS.get(colour)
+    if channels is None:
+        return None
+    shape = (height, width) if channels == 1 else (height, width, channels)
+    return shape, np.dtype(np.uint16 if bits == 16 else np.uint8)
+
+
+def _open_problem(path: Path) -> str | None:
+    """Why ``path`` cannot be read as a file (dangling link, folder, permissions), else None."""
+    if path.is_symlink() and not path.exists():
+        return f"a dangling symbolic link (its target {os.readlink(path)} does not exist)"
+    if not path.exists():
+        return "missing"
     if not path.is_file():
-        raise DatasetError(f"{path}: image missing")
+        return "not a regular file"
+    if not os.access(path, os.R_OK):
+        return "not readable (permissions)"
+    return None
+
+
+def check_image_file(path: Path, channels: int = 3, shape: tuple[int, int, int] | None = FRAME_SHAPE) -> None:
+    """Judge an image file before any work as the runtime judges a frame
+    (:func:`~tactile_force.edge.frames.check_frame`): 8-bit, ``channels`` channels (3: BGR
+    frame, 1: depth image), ``shape`` rows x cols (None: any size). A PNG is judged by its
+    header (no decoding); other images are decoded. An image that cannot be decoded is left
+    to its reader (:func:`read_image` refuses it, a replay counts it corrupt and skips it).
+
+    Raises
+    ------
+    DatasetError
+        Naming the file: missing, a dangling link, unreadable, grey or RGBA for a frame
+        (colour for a depth image), 16-bit, or another size.
+    """
+    if (problem := _open_problem(path)) is not None:
+        raise DatasetError(f"{path}: {problem}; expected an 8-bit " + _what(channels))
+    try:
+        with open(path, "rb") as fh:
+            layout = _png_layout(fh.read(26))
+    except OSError as exc:
+        raise DatasetError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    if layout is None:
+        img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+        if img is None:
+            return  # undecodable: its reader says so
+        layout = (img.shape, img.dtype)
+    if (problem := _layout_problem(layout[0], layout[1], channels, shape)) is not None:
+        raise DatasetError(f"{path}: {problem}")
+
+
+def _what(channels: int) -> str:
+    return "3-channel BGR frame" if channels == 3 else "single-channel depth image"
+
+
+def _layout_problem(shape: tuple[int, ...], dtype: np.dtype, channels: int,
+                    expected: tuple[int, int, int] | None) -> str | None:
+    """What a reader refuses in an image of this layout: the runtime's frame rule for frames,
+    8-bit single channel of the frame size for depth images."""
+    got = 1 if len(shape) == 2 else shape[2]
+    if got != channels or dtype != np.uint8:
+        what = {1: "grey", 2: "grey + alpha", 3: "colour", 4: "RGBA"}.get(got, f"{got}-channel")
+        return (f"{what} {got}-channel {dtype} image ({shape[0]} x {shape[1]} pixels); expected an 8-bit "
+                + _what(channels) + (" (the runtime's frame contract)" if channels == 3 else ""))
+    if channels == 3:
+        return frame_layout_problem(shape, dtype, expected)
+    if expected is not None and tuple(shape[:2]) != tuple(expected[:2]):
+        return f"shape {tuple(shape[:2])}; expected {tuple(expected[:2])} (the frame size)"
+    return None
+
+
+def read_image(path: Path, channels: int = 3, shape: tuple[int, int, int] | None = None) -> np.ndarray:
+    """Read an 8-bit PNG with ``channels`` channels (3: BGR frame HxWx3, 1: depth image HxW)
+    of ``shape`` rows x cols (None: any size).
+
+    DatasetError naming the file if it is missing, undecodable, 16-bit, of another size or
+    has another channel count: a colour image is never silently turned grey, nor a grey one
+    colour.
+    """
+    if not path.is_file():  # one stat, as every frame of a replay comes here (a FIFO would block the decoder)
+        raise DatasetError(f"{path}: image {_open_problem(path) or 'not a regular file'}")
     img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
     if img is None:
         raise DatasetError(f"{path}: cannot decode image (empty, truncated or not an image)")
-    got = 1 if img.ndim == 2 else img.shape[2]
-    if img.dtype != np.uint8 or got != channels:
-        want = "3-channel BGR frame" if channels == 3 else "single-channel depth image"
-        raise DatasetError(f"{path}: {got}-channel {img.dtype} image; expected an 8-bit {want}")
+    if (problem := _layout_problem(img.shape, img.dtype, channels, shape)) is not None:
+        raise DatasetError(f"{path}: {problem}")
     return img
 
 
 class AuthorsDataset:
     """Read a dataset in the authors' layout; index i gives the i-th sample by id order.
 
-    ``require_depth`` makes a missing ``filt_img_depth/depth_img_N.png`` an error;
+    Every frame is judged when the dataset is opened, before any work, as the runtime judges
+    a frame (:func:`check_image_file`: an 8-bit BGR image of ``shape``, default the DIGIT's
+    320 x 240; None: any size), and every label file and required depth image must be
+    readable (a dangling link or an unreadable file is refused): DatasetError naming the
+    file. ``require_depth`` makes a missing ``filt_img_depth/depth_img_N.png`` an error;
     otherwise depth is loaded when present.
     """
 
-    def __init__(self, root: str | os.PathLike, require_depth: bool = False) -> None:
+    def __init__(self, root: str | os.PathLike, require_depth: bool = False,
+                 shape: tuple[int, int, int] | None = FRAME_SHAPE) -> None:
+        expect(root, (str, os.PathLike), "AuthorsDataset.root", "a dataset folder path", nonempty=True)
+        expect(require_depth, bool, "AuthorsDataset.require_depth")
+        expect(shape, tuple[int, int, int] | None, "AuthorsDataset.shape", "(rows, cols, 3) in pixels, or None",
+               ge=1)
         self.root = Path(root)
+        self.shape = shape
         img_dir = self.root / "images"
         if not img_dir.is_dir():
             raise DatasetError(f"{self.root}: no 'images/' folder; "
@@ -127,6 +223,18 @@ class AuthorsDataset:
         self.ids: list[int] = sorted(self._images)
         self.require_depth = require_depth
         self.meta: dict[int, dict] = read_meta(self.root / "meta.jsonl")
+        self._check_files()
+
+    def _check_files(self) -> None:
+        """Every frame as the runtime would judge it, every label and required depth image
+        readable: DatasetError naming the first file that is not (before any work)."""
+        for n in self.ids:
+            check_image_file(self.image_path(n), 3, self.shape)
+            label = self.force_path(n)
+            if (label.exists() or label.is_symlink()) and (problem := _open_problem(label)) is not None:
+                raise DatasetError(f"{label}: {problem}; expected the force label of {self.image_path(n).name}")
+            if self.require_depth:
+                check_image_file(self.depth_path(n), 1, self.shape)
 
     def __len__(self) -> int:
         return len(self.ids)
@@ -160,11 +268,11 @@ class AuthorsDataset:
 
     def load(self, n: int) -> Sample:
         """Sample with id ``n``."""
-        frame = read_image(self.image_path(n))
+        frame = read_image(self.image_path(n), shape=self.shape)
         dpath = self.depth_path(n)
         depth = None
         if dpath.is_file() or self.require_depth:
-            depth = read_image(dpath, channels=1)
+            depth = read_image(dpath, channels=1, shape=self.shape)
         return Sample(id=n, frame=frame, force_n=self.force(n), depth=depth, meta=self.meta.get(n, {}))
 
     def __getitem__(self, i: int) -> Sample:
@@ -200,6 +308,8 @@ class AuthorsDatasetWriter:
     """
 
     def __init__(self, root: str | os.PathLike, start_id: int = 0) -> None:
+        expect(root, (str, os.PathLike), "AuthorsDatasetWriter.root", "a dataset folder path", nonempty=True)
+        expect(start_id, int, "AuthorsDatasetWriter.start_id", "a sample number >= 0", ge=0)
         self.root = Path(root)
         for sub in ("images", "forces"):
             (self.root / sub).mkdir(parents=True, exist_ok=True)

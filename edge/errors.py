@@ -29,7 +29,17 @@ class ModelClosedError(TactileForceError):
 
 
 class OptionsError(TactileForceError, ValueError):
-    """An options object (RuntimeOptions, ...) holds a value outside its range; the message names the field."""
+    """An options object (RuntimeOptions, ...) or a constructor argument holds a value outside
+    its range; the message names the field or parameter and what was expected."""
+
+
+class ArgumentTypeError(TactileForceError, TypeError, ValueError):
+    """A constructor argument or an options field has the wrong type (``ContactGate("x")``,
+    ``GateOptions(threshold="x")``); the message names the parameter and the expected type.
+
+    A TypeError, and also a ValueError (as numpy's AxisError is both a ValueError and an
+    IndexError): code that caught the ValueError some options raised for a wrong type before
+    keeps working."""
 
 
 class DatasetError(TactileForceError):

@@ -66,22 +66,44 @@ def check_frame(
         raise FrameError(f"{name}: expected a numpy.ndarray (H x W x 3 uint8 BGR), got {type(frame).__name__}")
     if frame.size == 0:
         raise FrameError(f"{name}: empty array (shape {frame.shape}); expected H x W x 3 uint8 BGR")
-    if frame.dtype != np.uint8:
-        extra = ""
-        if np.issubdtype(frame.dtype, np.floating) and not np.all(np.isfinite(frame)):
-            extra = " (and it contains NaN or inf)"
-        raise FrameError(
-            f"{name}: dtype {frame.dtype}{extra}; expected uint8 BGR 0..255 "
-            "(convert with np.clip(x, 0, 255).astype(np.uint8) only if the values are 0..255)"
-        )
-    if frame.ndim != 3 or frame.shape[2] != 3:
-        raise FrameError(f"{name}: shape {frame.shape}; expected H x W x 3 (BGR)")
-    if shape is not None and frame.shape != shape:
-        hint = ""
-        if frame.shape[:2] == shape[:2][::-1]:
-            hint = " (looks like landscape: transpose/rotate to 320 rows x 240 cols as digit-interface does)"
-        raise FrameError(f"{name}: shape {frame.shape}; expected {shape}{hint}")
+    nan = np.issubdtype(frame.dtype, np.floating) and not np.all(np.isfinite(frame))
+    problem = frame_layout_problem(frame.shape, frame.dtype, shape, nan=nan)
+    if problem is not None:
+        raise FrameError(f"{name}: {problem}")
     return np.ascontiguousarray(frame)
+
+
+def frame_layout_problem(shape: tuple[int, ...], dtype: np.dtype | type,
+                         expected: tuple[int, int, int] | None = FRAME_SHAPE, nan: bool = False) -> str | None:
+    """What :func:`check_frame` refuses in an image of this shape and dtype, from the layout
+    alone (no pixels needed: a reader can judge an image file by its header), else None.
+
+    Parameters
+    ----------
+    shape, dtype
+        The image's array shape (H x W, or H x W x C) and element type.
+    expected
+        H x W x 3 the frame must have; None accepts any H x W x 3.
+    nan
+        The values hold NaN or inf (said in the message of a float image).
+
+    Returns
+    -------
+    str or None
+        E.g. ``"shape (320, 240); expected H x W x 3 (BGR)"`` for a grey image.
+    """
+    if np.dtype(dtype) != np.uint8:
+        extra = " (and it contains NaN or inf)" if nan else ""
+        return (f"dtype {np.dtype(dtype)}{extra}; expected uint8 BGR 0..255 "
+                "(convert with np.clip(x, 0, 255).astype(np.uint8) only if the values are 0..255)")
+    if len(shape) != 3 or shape[2] != 3:
+        return f"shape {tuple(shape)}; expected H x W x 3 (BGR)"
+    if expected is not None and tuple(shape) != tuple(expected):
+        hint = ""
+        if tuple(shape[:2]) == tuple(expected[:2][::-1]):
+            hint = " (looks like landscape: transpose/rotate to 320 rows x 240 cols as digit-interface does)"
+        return f"shape {tuple(shape)}; expected {tuple(expected)}{hint}"
+    return None
 
 
 #: Share of pixels clipped at the top (a channel >= 250) above which a frame is over-exposed.

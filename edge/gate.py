@@ -37,17 +37,19 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
 
 from .background_policy import BackgroundLearner, RelearnPolicy, refresh
-from .errors import FrameError
+from .checks import check_fields, expect
+from .errors import FrameError, OptionsError
 from .frames import TimedFrame, check_frame
 from .gate_checks import Reference, colour_swapped, dark_share, is_uniform, motion_explained, noise_verdict
 from .manifest import FrameReduction
 from .reduce import FrameReducer, default_reduction
+from .typed_json import check
 
 _log = logging.getLogger(__name__)
 
@@ -93,26 +95,26 @@ class GateOptions:
     stable_level: mean thumbnail change (grey levels) between frames under which a frame is stable.
     """
 
-    background_frames: int = 5
-    blur: int = 3
-    threshold: float = 10.0
-    on_area_frac: float = 0.006
-    off_area_frac: float = 0.003
-    min_blob_frac: float = 0.0015
-    downscale: int = 4
-    refresh_rate: float = 0.02
-    saturation_threshold: float = 60.0
-    saturation_area_frac: float = 0.25
+    background_frames: int = field(default=5, metadata=check(ge=1))
+    blur: int = field(default=3, metadata=check(ge=1, expected="an odd integer >= 1 (Gaussian kernel, pixels)"))
+    threshold: float = field(default=10.0, metadata=check(gt=0, lt=255))
+    on_area_frac: float = field(default=0.006, metadata=check(ge=0, lt=1))
+    off_area_frac: float = field(default=0.003, metadata=check(ge=0, lt=1))
+    min_blob_frac: float = field(default=0.0015, metadata=check(ge=0, lt=1))
+    downscale: int = field(default=4, metadata=check(ge=1))
+    refresh_rate: float = field(default=0.02, metadata=check(ge=0, lt=1))
+    saturation_threshold: float = field(default=60.0, metadata=check(gt=0))
+    saturation_area_frac: float = field(default=0.25, metadata=check(gt=0, le=1))
     convex_hull: bool = False
-    open_px: int = 0
+    open_px: int = field(default=0, metadata=check(ge=0, expected="an integer >= 0 (0 = no opening)"))
     trust: bool = True
-    fit_tolerance: float = 8.0
-    step_level: float = 10.0
-    fit_floor: float = 0.35
-    motion_explained: float = 0.35
-    noise_factor: float = 2.2
-    relearn_frames: int = 30
-    stable_level: float = 2.0
+    fit_tolerance: float = field(default=8.0, metadata=check(gt=0))
+    step_level: float = field(default=10.0, metadata=check(gt=0))
+    fit_floor: float = field(default=0.35, metadata=check(gt=0, lt=1))
+    motion_explained: float = field(default=0.35, metadata=check(gt=0, lt=1))
+    noise_factor: float = field(default=2.2, metadata=check(gt=0))
+    relearn_frames: int = field(default=30, metadata=check(ge=0, expected="an integer >= 0 (0 = never)"))
+    stable_level: float = field(default=2.0, metadata=check(gt=0))
 
     @classmethod
     def gelsight_mini(cls, **overrides: object) -> GateOptions:
@@ -123,36 +125,19 @@ class GateOptions:
         base: dict[str, object] = {"threshold": 28.0, "convex_hull": True, "downscale": 2, "blur": 5, "open_px": 3}
         return cls(**{**base, **overrides})  # type: ignore[arg-type]
 
+    def __post_init__(self) -> None:
+        self.validate()
+
     def validate(self) -> None:
-        """Raise ValueError naming the first bad field."""
-        if self.background_frames < 1:
-            raise ValueError(f"gate.background_frames={self.background_frames}: expected an integer >= 1")
-        if self.blur < 1 or self.blur % 2 == 0:
-            raise ValueError(f"gate.blur={self.blur}: expected an odd integer >= 1 (Gaussian kernel, pixels)")
-        if not 0 < self.threshold < 255:
-            raise ValueError(f"gate.threshold={self.threshold}: expected 0 < threshold < 255")
-        if not 0 <= self.off_area_frac <= self.on_area_frac < 1:
-            raise ValueError(
-                f"gate.on_area_frac={self.on_area_frac}, off_area_frac={self.off_area_frac}: "
-                "expected 0 <= off_area_frac <= on_area_frac < 1"
-            )
-        if int(self.downscale) != self.downscale or self.downscale < 1:
-            raise ValueError(f"gate.downscale={self.downscale}: expected an integer >= 1")
-        if not 0 <= self.refresh_rate < 1:
-            raise ValueError(f"gate.refresh_rate={self.refresh_rate}: expected 0 <= rate < 1")
-        for name in ("convex_hull", "trust"):
-            if not isinstance(getattr(self, name), bool):
-                raise ValueError(f"gate.{name}={getattr(self, name)!r}: expected true or false")
-        for name in ("fit_tolerance", "step_level", "noise_factor", "stable_level"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"gate.{name}={getattr(self, name)}: expected a number > 0")
-        for name in ("fit_floor", "motion_explained"):
-            if not 0 < getattr(self, name) < 1:
-                raise ValueError(f"gate.{name}={getattr(self, name)}: expected 0 < value < 1")
-        if int(self.open_px) != self.open_px or self.open_px < 0:
-            raise ValueError(f"gate.open_px={self.open_px}: expected an integer >= 0 (0 = no opening)")
-        if int(self.relearn_frames) != self.relearn_frames or self.relearn_frames < 0:
-            raise ValueError(f"gate.relearn_frames={self.relearn_frames}: expected an integer >= 0 (0 = never)")
+        """Raise :class:`~.errors.ArgumentTypeError` (a TypeError) or :class:`~.errors.OptionsError`
+        (a ValueError) naming the first bad field; run at construction, and again by
+        :class:`ContactGate` (fields may have been changed since)."""
+        check_fields(self)
+        if self.blur % 2 == 0:
+            raise OptionsError(f"GateOptions.blur={self.blur}: expected an odd integer >= 1 (Gaussian kernel, pixels)")
+        if not self.off_area_frac <= self.on_area_frac:
+            raise OptionsError(f"GateOptions.on_area_frac={self.on_area_frac}, off_area_frac={self.off_area_frac}: "
+                               "expected 0 <= off_area_frac <= on_area_frac < 1")
 
 
 class GateResult:
@@ -250,6 +235,7 @@ class ContactGate:
     """Per-sensor contact gate; one instance per sensor, not thread-safe."""
 
     def __init__(self, options: GateOptions | None = None) -> None:
+        expect(options, (GateOptions, type(None)), "ContactGate.options", "a GateOptions or None (the defaults)")
         self.options = options or GateOptions()
         self.options.validate()
         self._bg: np.ndarray | None = None  # blurred background, float32, working res

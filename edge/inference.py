@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from .bundle import Bundle, load_bundle
+from .checks import expect
 from .errors import BundleError, FrameError, ModelClosedError
 from .frames import FRAME_COLS, FRAME_ROWS, check_batch
 from .manifest import FrameReduction, InputKind, Reduction
@@ -48,6 +49,11 @@ class OnnxForceModel:
                  calibrate: bool = True) -> None:
         import onnxruntime as ort
 
+        expect(bundle, (Bundle, str, os.PathLike), "OnnxForceModel.bundle", "a Bundle or a bundle folder path",
+               nonempty=True)
+        expect(threads, int, "OnnxForceModel.threads", "an integer >= 1 (ONNX Runtime intra-op threads)", ge=1)
+        expect(warmup, int, "OnnxForceModel.warmup", "an integer >= 0 (warm-up runs at load)", ge=0)
+        expect(calibrate, bool, "OnnxForceModel.calibrate")
         self.bundle = bundle if isinstance(bundle, Bundle) else load_bundle(bundle)
         m = self.bundle.manifest
         # Per-sensor force calibration (manifest force_calibration), applied to every output;
@@ -58,12 +64,10 @@ class OnnxForceModel:
                               f"{cal.model_sha256[:12]}..., not this bundle's {m.sha256[:12]}...; "
                               "re-run calibrate-force")
         self.calibration = cal if calibrate else None
-        if threads < 1:
-            raise ValueError(f"threads={threads}: expected >= 1 intra-op threads")
-        self.threads = threads
+        self.threads = int(threads)
         self._lock = threading.Lock()  # predict: the bound buffers are shared by every caller
         so = ort.SessionOptions()
-        so.intra_op_num_threads = threads
+        so.intra_op_num_threads = self.threads
         so.inter_op_num_threads = 1
         so.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
         so.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL

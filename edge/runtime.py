@@ -48,7 +48,8 @@ from typing import TYPE_CHECKING, Any, Protocol, cast
 
 import numpy as np
 
-from .errors import FrameError, ModelClosedError, OptionsError
+from .checks import check_fields, expect
+from .errors import ArgumentTypeError, FrameError, ModelClosedError, OptionsError
 from .frames import FRAME_SHAPE, FrameSource, TimedFrame, check_frame, exposure_problem
 from .gate import ContactGate, GateResult
 from .grabbers import Grabbers as _Grabbers
@@ -58,6 +59,7 @@ from .interval import ForceInterval, usable_interval
 from .judging import EstimateJudge, gate_verdict
 from .manifest import Manifest
 from .reading import Flags, ForceReading, StageLatency
+from .typed_json import check
 
 if TYPE_CHECKING:  # the depth code is imported only for depth bundles
     from .depth import DepthOptions, DepthStage
@@ -115,23 +117,17 @@ class RuntimeOptions:
     one sensor is read in the loop's thread, the lowest-latency path).
 
     Raises :class:`OptionsError` naming the field when deadline_ms is not a finite number > 0,
-    threads < 1 or latency_window < 1."""
+    threads < 1 or latency_window < 1, :class:`ArgumentTypeError` for a value of another type."""
 
-    deadline_ms: float = 16.7
-    threads: int = 1
+    deadline_ms: float = field(default=16.7, metadata=check(
+        gt=0, expected="a finite number of milliseconds > 0 (e.g. 16.7 for 60 fps)"))
+    threads: int = field(default=1, metadata=check(ge=1))
     report_stale: bool = True
-    latency_window: int = 600
+    latency_window: int = field(default=600, metadata=check(ge=1))
     grabbers: bool | None = None
 
     def __post_init__(self) -> None:
-        d = self.deadline_ms
-        if isinstance(d, bool) or not isinstance(d, (int, float)) or not math.isfinite(d) or d <= 0:
-            raise OptionsError(f"RuntimeOptions.deadline_ms={d!r}: expected a finite number of milliseconds > 0 "
-                               "(e.g. 16.7 for 60 fps)")
-        for name in ("threads", "latency_window"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
-                raise OptionsError(f"RuntimeOptions.{name}={v!r}: expected an integer >= 1")
+        check_fields(self)
 
 
 @dataclass
@@ -145,6 +141,13 @@ class Sensor:
     depth: Any = None  # edge.depth.DepthStage (process(frame, mask), set_reference(frames))
     alive: bool = True
     error: str = ""
+
+    def __post_init__(self) -> None:
+        expect(self.name, str, "Sensor.name", "a non-empty string (the sensor's name in readings)", nonempty=True)
+        if not callable(getattr(self.source, "read", None)):
+            raise ArgumentTypeError(f"Sensor.source={self.source!r}: expected a frame source (an object with read() "
+                                    f"and close(), e.g. ReplayFolderSource(folder)), got {type(self.source).__name__}")
+        expect(self.gate, ContactGate, "Sensor.gate", "a ContactGate (one per sensor)")
 
 
 @dataclass
@@ -341,6 +344,30 @@ def shares_reduction(gate: ContactGate, model: object) -> bool:
             and red is not None and red.factor > 1 and red == gate.reduction)
 
 
+def _check_runtime_args(sensors: object, model: object, options: object, clock: object, depth_factory: object,
+                        backend: object, owns_model: object) -> None:
+    """The arguments of :class:`ForceRuntime`, checked once; ArgumentTypeError / OptionsError
+    naming the parameter."""
+    if isinstance(sensors, Sensor):
+        raise ArgumentTypeError("ForceRuntime.sensors: got one Sensor; expected a list of 1 or 2 Sensor "
+                                "(one per finger): pass [sensor]")
+    expect(sensors, (list, tuple), "ForceRuntime.sensors", "a list of 1 or 2 Sensor (one per finger)")
+    assert isinstance(sensors, (list, tuple))
+    if not 1 <= len(sensors) <= 2:
+        raise OptionsError(f"ForceRuntime.sensors: {len(sensors)} sensors; expected 1 or 2 (one per finger)")
+    for i, s in enumerate(sensors):
+        expect(s, Sensor, f"ForceRuntime.sensors[{i}]", "a Sensor(name, source, gate)")
+    if not callable(getattr(model, "predict", None)):
+        raise ArgumentTypeError(f"ForceRuntime.model={model!r}: expected a force model with predict() "
+                                f"(e.g. OnnxForceModel(bundle)), got {type(model).__name__}")
+    expect(options, (RuntimeOptions, type(None)), "ForceRuntime.options", "a RuntimeOptions or None (the defaults)")
+    expect(clock, Callable, "ForceRuntime.clock", "a callable returning monotonic ns (e.g. time.monotonic_ns)")
+    expect(depth_factory, (Callable, type(None)), "ForceRuntime.depth_factory", "a callable making a depth stage, "
+                                                                                 "or None (the default)")
+    expect(backend, str, "ForceRuntime.backend", "a backend name such as 'cpu'", nonempty=True)
+    expect(owns_model, bool, "ForceRuntime.owns_model")
+
+
 class ForceRuntime:
     """Serve force readings for one or two sensors from one model.
 
@@ -362,16 +389,15 @@ class ForceRuntime:
                  clock: Callable[[], int] = time.monotonic_ns,
                  depth_factory: Callable[[], object] | None = None, backend: str = "cpu",
                  owns_model: bool = True) -> None:
+        _check_runtime_args(sensors, model, options, clock, depth_factory, backend, owns_model)
         if getattr(model, "closed", False):
             bundle = getattr(model, "bundle", None)
             raise ModelClosedError(f"{getattr(bundle, 'path', 'model')}: ForceRuntime was given a closed model; "
                                    "load the bundle again")
-        if not 1 <= len(sensors) <= 2:
-            raise ValueError(f"ForceRuntime: {len(sensors)} sensors; expected 1 or 2 (one per finger)")
         names = [s.name for s in sensors]
         if len(set(names)) != len(names):
-            raise ValueError(f"ForceRuntime: sensor names {names} must be unique")
-        self.sensors = sensors
+            raise OptionsError(f"ForceRuntime.sensors: names {names}; expected unique names")
+        self.sensors = sensors if isinstance(sensors, list) else list(sensors)
         self.model = model
         self.owns_model = bool(owns_model)
         self._closed = False

@@ -15,6 +15,7 @@ from __future__ import annotations
 import logging
 import os
 import re
+import sys
 import threading
 import time
 from collections.abc import Callable
@@ -24,8 +25,9 @@ from typing import Protocol
 import cv2
 import numpy as np
 
-from .dataset import AuthorsDataset
-from .errors import DatasetError, SourceError
+from .checks import expect
+from .dataset import AuthorsDataset, read_image
+from .errors import DatasetError, OptionsError, SourceError
 from .frames import FRAME_SHAPE, FrameSource, TimedFrame
 from .labels import LabelError, read_force_file
 
@@ -52,6 +54,14 @@ def _fit(frame: np.ndarray, shape: tuple[int, int, int] | None) -> np.ndarray | 
     return None
 
 
+def _check_shape(shape: object, name: str, optional: bool = True) -> None:
+    """A frame shape argument: (rows, cols, 3) with rows, cols >= 1 (or None when ``optional``)."""
+    want = "(rows, cols, 3) in pixels" + (", or None (any size)" if optional else "")
+    expect(shape, tuple[int, int, int] | None if optional else tuple[int, int, int], name, want, ge=1)
+    if shape is not None and shape[2] != 3:  # type: ignore[index]
+        raise OptionsError(f"{name}={shape!r}: expected {want} (BGR frames have 3 channels)")
+
+
 #: This many undecodable or wrong-size frames in a row mean the stream is dead.
 MAX_CORRUPT_IN_ROW = 30
 
@@ -70,11 +80,25 @@ class Capture(Protocol):
     def release(self) -> None: ...
 
 
+def missing_camera(device: int | str) -> str | None:
+    """Why V4L2 cannot open camera ``device`` (index, '0', or '/dev/videoN') because its
+    /dev node does not exist (an index N is /dev/videoN on Linux), else None. Opens nothing."""
+    dev = int(device) if isinstance(device, str) and device.isdigit() else device
+    if isinstance(dev, int):
+        node = Path(f"/dev/video{dev}")
+        if not sys.platform.startswith("linux") or node.exists():
+            return None
+        return f"camera {dev}: no such device {node} (is the sensor plugged in? see 'tactile-force devices')"
+    if not Path(dev).exists():
+        return f"camera {dev}: no such device (is the sensor plugged in? see 'tactile-force devices')"
+    return None
+
+
 def open_v4l2(device: int | str) -> cv2.VideoCapture:
     """Default capture factory: ``device`` (index, '0', or '/dev/videoN') through OpenCV's V4L2 backend."""
+    if (why := missing_camera(device)) is not None:
+        raise SourceError(why)
     dev = int(device) if isinstance(device, str) and device.isdigit() else device
-    if isinstance(dev, str) and not Path(dev).exists():
-        raise SourceError(f"camera {dev}: no such device (is the sensor plugged in? see 'tactile-force devices')")
     return cv2.VideoCapture(dev, cv2.CAP_V4L2)
 
 
@@ -120,9 +144,20 @@ class CameraSource(FrameSource):
                  open_capture: Callable[[int | str], Capture] = open_v4l2,
                  configure: Callable[[Capture], None] | None = None) -> None:
         super().__init__()
-        if max_failures < 1 or max_corrupt < 1:
-            raise SourceError(f"camera {device}: max_failures={max_failures}, max_corrupt={max_corrupt}; "
-                              "expected integers >= 1")
+        expect(device, int | str, "CameraSource.device", "a camera index >= 0 or a /dev/videoN path", ge=0,
+               nonempty=True)
+        expect(fps, float, "CameraSource.fps", "a frame rate > 0 (frames per second)", gt=0)
+        expect(fourcc, tuple[str, ...], "CameraSource.fourcc", "a tuple of FOURCC codes such as ('MJPG', 'YUYV')")
+        _check_shape(shape, "CameraSource.shape", optional=False)
+        expect(size, tuple[int, int] | None, "CameraSource.size", "(width, height) in pixels >= 1, or None", ge=1)
+        expect(timeout_s, float, "CameraSource.timeout_s", "a number of seconds > 0", gt=0)
+        expect(max_failures, int, "CameraSource.max_failures", ge=1)
+        expect(max_corrupt, int, "CameraSource.max_corrupt", ge=1)
+        expect(name, str, "CameraSource.name", nonempty=True)
+        expect(clock, Callable, "CameraSource.clock", "a callable returning monotonic ns")
+        expect(grab_thread, bool, "CameraSource.grab_thread")
+        expect(open_capture, Callable, "CameraSource.open_capture", "a callable opening a capture")
+        expect(configure, Callable | None, "CameraSource.configure", "a callable taking the capture, or None")
         self.name = name
         self.device = device
         self.fps = fps
@@ -296,8 +331,11 @@ class _FileSequenceSource(FrameSource):
 
     def __init__(self, fps: float | None, clock: Clock, sleep: Callable[[float], None]) -> None:
         super().__init__()
-        if fps is not None and not fps > 0:
-            raise SourceError(f"{self.name}: fps={fps}; expected a positive frame rate or None (unpaced)")
+        owner = type(self).__name__
+        expect(fps, float | None, f"{owner}.fps", "a frame rate > 0 or None (unpaced)", gt=0)
+        expect(clock, Callable, f"{owner}.clock", "a callable returning monotonic ns")
+        expect(sleep, Callable, f"{owner}.sleep", "a callable sleeping for seconds")
+        expect(self.name, str, f"{owner}.name", nonempty=True)
         self.fps = fps
         self._clock = clock
         self._sleep = sleep
@@ -347,6 +385,12 @@ class ReplayFolderSource(_FileSequenceSource):
     truth_n from the force files, frames in order of N) or a plain folder of PNG/JPG files
     (natural name order, no truth). ``fps=None`` replays as fast as it is read.
 
+    Refused at open, before any frame is read (SourceError naming the file): a frame file
+    that is a dangling link, unreadable or a special file; in the authors' layout also a
+    frame the runtime would refuse (grey, RGBA, 16-bit, not ``shape``: the labelled data are
+    read by :class:`~tactile_force.edge.dataset.AuthorsDataset`, frames as they are, never
+    converted) and a label file that is a dangling link or unreadable.
+
     Labels are read by :func:`tactile_force.edge.labels.read_force_file`. A bad label
     (missing, not UTF-8, not a number, NaN, negative, above the bound) never stops the
     replay: the frame is yielded with ``truth_n = None`` and ``meta['label_error']``, and
@@ -358,6 +402,8 @@ class ReplayFolderSource(_FileSequenceSource):
                  clock: Clock = time.monotonic_ns, sleep: Callable[[float], None] = time.sleep) -> None:
         self.name = name
         super().__init__(fps, clock, sleep)
+        expect(path, (str, os.PathLike), "ReplayFolderSource.path", "a replay folder path", nonempty=True)
+        _check_shape(shape, "ReplayFolderSource.shape")
         self.path = Path(path)
         self.shape = shape
         if not self.path.is_dir():
@@ -365,8 +411,8 @@ class ReplayFolderSource(_FileSequenceSource):
                               "(expected images/N.png + forces/ or a folder of PNGs)")
         self._dataset: AuthorsDataset | None = None
         if (self.path / "images").is_dir():
-            try:
-                self._dataset = AuthorsDataset(self.path)
+            try:  # labelled data: every frame judged now, as the runtime would (AuthorsDataset)
+                self._dataset = AuthorsDataset(self.path, shape=shape)
             except DatasetError as exc:
                 raise SourceError(f"replay folder {self.path}: {exc}") from None
             self._files = [self._dataset.image_path(n) for n in self._dataset.ids]
@@ -375,9 +421,15 @@ class ReplayFolderSource(_FileSequenceSource):
                                  key=_natural_key)
             from .output_guard import special_file_kind
 
-            for p in self._files:  # reading a FIFO would block
-                if (kind := special_file_kind(p)) is not None:
+            for p in self._files:  # refused now, not after a run that skipped them
+                if (kind := special_file_kind(p)) is not None:  # reading a FIFO would block
                     raise SourceError(f"replay folder {self.path}: {p.name} is a {kind}; expected image files")
+                if p.is_symlink() and not p.exists():
+                    raise SourceError(f"replay folder {self.path}: {p.name} is a dangling symbolic link (its target "
+                                      f"{os.readlink(p)} does not exist); expected image files")
+                if not p.is_file() or not os.access(p, os.R_OK):
+                    why = "not a regular file" if not p.is_file() else "not readable (permissions)"
+                    raise SourceError(f"replay folder {self.path}: {p.name} is {why}; expected image files")
         if not self._files:
             raise SourceError(f"replay folder {self.path}: no .png/.jpg frames")
         self.layout = "authors" if self._dataset is not None else "plain"
@@ -391,8 +443,14 @@ class ReplayFolderSource(_FileSequenceSource):
         if not path.is_file():
             raise SourceError(f"replay folder {self.path}: frame {path.name} disappeared during the run "
                               "(folder deleted, moved or unmounted?)")
-        img = cv2.imread(str(path), cv2.IMREAD_COLOR)
-        frame = _fit(img, self.shape) if img is not None else None
+        if self._dataset is not None:  # labelled frames: read as the dataset reads them (never converted)
+            try:
+                frame: np.ndarray | None = read_image(path, shape=self._dataset.shape)
+            except DatasetError:
+                frame = None  # changed since the folder was opened (truncated): counted corrupt
+        else:
+            img = cv2.imread(str(path), cv2.IMREAD_COLOR)
+            frame = _fit(img, self.shape) if img is not None else None
         truth = None
         meta: dict = {"path": str(path)}
         if frame is not None and self._dataset is not None:
@@ -415,6 +473,8 @@ class VideoFileSource(_FileSequenceSource):
                  clock: Clock = time.monotonic_ns, sleep: Callable[[float], None] = time.sleep) -> None:
         self.name = name
         super().__init__(fps, clock, sleep)
+        expect(path, (str, os.PathLike), "VideoFileSource.path", "a video file path", nonempty=True)
+        _check_shape(shape, "VideoFileSource.shape")
         self.path = Path(path)
         self.shape = shape
         if not self.path.is_file():

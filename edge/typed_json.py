@@ -22,8 +22,9 @@ Constraints are declared on the field, one documented way::
     source: str = field(metadata=check(choices=("camera", "replay")))
 
 (see :func:`check`). ``Path`` fields are read from non-empty strings with ``~`` and
-``$VARS`` expanded: input paths relative to the ``base`` folder given to :func:`from_json`
-(the scene file's folder), or under a ``prefixes`` root (``package:FILE``); output paths
+``$VARS`` expanded (a variable that is not set is an error naming it, never left in the
+path): input paths relative to the ``base`` folder given to :func:`from_json` (the scene
+file's folder), or under a ``prefixes`` root (``package:FILE``); output paths
 (``check(path="output")``) relative to the working directory.
 
 A dataclass may define ``check(self) -> None`` raising ``ValueError`` for rules that span
@@ -32,16 +33,20 @@ fields; the message is prefixed with the dataclass's path.
 
 from __future__ import annotations
 
+import collections.abc
 import dataclasses
 import enum
 import math
 import os
+import re
 import types
 import typing
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal, TypeVar, Union
+
+from .errors import ArgumentTypeError
 
 T = TypeVar("T")
 
@@ -139,9 +144,12 @@ def _expect(tp: Any, chk: Check, ctx: _Context, value: object, path: str) -> Typ
     return _fail(path, f"expected {describe_type(tp, chk, ctx.table)}, got {_describe(value)}")
 
 
-def describe_type(tp: Any, chk: Check = NO_CHECK, table: str = "an object") -> str:
+def describe_type(tp: Any, chk: Check = NO_CHECK, table: str | None = "an object") -> str:
     """What a value of annotation ``tp`` with constraints ``chk`` must be, in words
-    (``"a number > 0"``, ``"one of 'cpu', 'oak'"``, ``"a list of an integer"``)."""
+    (``"a number > 0"``, ``"one of 'cpu', 'oak'"``, ``"a list of an integer"``).
+
+    ``table`` names a nested object (``"an object"`` in JSON, ``"a table"`` in TOML); None
+    names Python values instead (``"a GateOptions"``, ``"None"``), for argument checks."""
     if chk.expected:
         return chk.expected
     if chk.choices is not None:
@@ -154,28 +162,62 @@ def describe_type(tp: Any, chk: Check = NO_CHECK, table: str = "an object") -> s
         return "one of " + ", ".join(map(repr, typing.get_args(tp)))
     if origin is list:
         return f"a list of {describe_type(typing.get_args(tp)[0], NO_CHECK, table)}"
-    if origin is dict or (isinstance(tp, type) and dataclasses.is_dataclass(tp)):
-        return table
+    if origin is tuple:
+        args = typing.get_args(tp)
+        if len(args) == 2 and args[1] is Ellipsis:
+            return f"a tuple of {describe_type(args[0], NO_CHECK, table)}"
+        return f"a tuple of {len(args)} values ({', '.join(describe_type(a, NO_CHECK, table) for a in args)})"
+    if origin is collections.abc.Callable or tp is collections.abc.Callable:
+        return "a callable"
     if tp is type(None):
-        return "null"
+        return "null" if table is not None else "None"
+    if origin is dict or (isinstance(tp, type) and dataclasses.is_dataclass(tp)):
+        if table is not None:
+            return table
+        return "a dict" if origin is dict else f"a {tp.__name__}"
     if isinstance(tp, type) and issubclass(tp, enum.Enum):
         return "one of " + ", ".join(repr(m.value) for m in tp)
     if tp in (int, float):
         return ("an integer" if tp is int else "a number") + (f" {rng}" if rng else "")
-    if tp is Path:
+    if tp is Path or tp is os.PathLike:
         return "an output file path" if chk.path == "output" else "a path"
-    return {bool: "true or false", str: "a non-empty string" if chk.nonempty else "a string"}.get(tp, repr(tp))
+    if tp in (bool, str):
+        return {bool: "true or false", str: "a non-empty string" if chk.nonempty else "a string"}[tp]
+    return f"a {tp.__name__}" if isinstance(tp, type) else repr(tp)
 
 
 def _literal(tp: Any, value: object) -> bool:
     return any(type(value) is type(a) and value == a for a in typing.get_args(tp))
 
 
+#: ``$NAME`` or ``${NAME}``, as :func:`os.path.expandvars` finds them.
+_VARIABLE = re.compile(r"\$(\w+|\{([^}]*)\})", re.ASCII)
+
+
+def unset_variable(text: str) -> str | None:
+    """The first ``$NAME`` / ``${NAME}`` in ``text`` that is not set in the environment
+    (as written, e.g. ``"$OUT_DIR"``), else None. :func:`os.path.expandvars` leaves such a
+    variable in the path as it is, so the path would point somewhere the user did not mean."""
+    for m in _VARIABLE.finditer(text):
+        name = m.group(2) if m.group(2) is not None else m.group(1)
+        if name not in os.environ:
+            return m.group(0)
+    return None
+
+
+def expand_path(text: str) -> Path:
+    """``text`` with ``~`` and ``$VARS`` expanded; ValueError naming the variable when one is
+    not set (see :func:`unset_variable`)."""
+    if (var := unset_variable(text)) is not None:
+        raise ValueError(f"environment variable {var} is not set (in {text!r}); set it, or write the path out")
+    return Path(os.path.expandvars(os.path.expanduser(text)))
+
+
 def _path(value: str, chk: Check, ctx: _Context) -> Path:
     for prefix, root in ctx.prefixes.items():
         if value.startswith(prefix):
             return root / value[len(prefix):]
-    p = Path(os.path.expandvars(os.path.expanduser(value)))
+    p = expand_path(value)
     if chk.path == "output":
         return p.absolute()
     if p.is_absolute() or ctx.base is None:
@@ -256,7 +298,12 @@ def _convert(tp: Any, value: object, path: str, chk: Check, ctx: _Context) -> An
             raise _fail(path, f"is empty; expected {describe_type(tp, chk, ctx.table)}")
         if chk.choices is not None and value not in chk.choices:
             raise _expect(tp, chk, ctx, value, path)
-        return _checked(_path(value, chk, ctx) if tp is Path else value, tp, chk, ctx, path, value)
+        if tp is Path:
+            try:
+                return _checked(_path(value, chk, ctx), tp, chk, ctx, path, value)
+            except ValueError as exc:  # an unset $VARIABLE
+                raise _fail(path, str(exc)) from None
+        return _checked(value, tp, chk, ctx, path, value)
     raise TypeError(f"{path}: typed_json does not support the annotation {tp!r}")  # a bug in a record class
 
 
@@ -269,7 +316,8 @@ def _checked(out: Any, tp: Any, chk: Check, ctx: _Context, path: str, raw: objec
 _HINTS: dict[type, dict[str, Any]] = {}
 
 
-def _hints(cls: type) -> dict[str, Any]:
+def type_hints(cls: type) -> dict[str, Any]:
+    """The evaluated field annotations of dataclass ``cls`` (cached per class)."""
     if cls not in _HINTS:
         _HINTS[cls] = typing.get_type_hints(cls)
     return _HINTS[cls]
@@ -297,7 +345,7 @@ def _from_json(cls: type[T], raw: object, path: str, ctx: _Context, defaults: T 
     fields = {f.name: f for f in dataclasses.fields(cls) if f.init}  # type: ignore[arg-type]
     if (err := unknown_keys(raw, fields, path)) is not None:
         raise err
-    hints = _hints(cls)
+    hints = type_hints(cls)
     kwargs = {}
     for name, f in fields.items():
         sub = f"{path}.{name}" if path else name
@@ -307,7 +355,10 @@ def _from_json(cls: type[T], raw: object, path: str, ctx: _Context, defaults: T 
                 raise _fail(sub, f"missing; expected {describe_type(hints[name], chk, ctx.table)}")
             continue
         kwargs[name] = _convert(hints[name], raw[name], sub, chk, ctx)
-    obj = dataclasses.replace(defaults, **kwargs) if defaults is not None else cls(**kwargs)  # type: ignore[type-var]
+    try:  # a record that checks its own fields on construction (__post_init__) names them
+        obj = dataclasses.replace(defaults, **kwargs) if defaults is not None else cls(**kwargs)  # type: ignore[type-var]
+    except (ArgumentTypeError, ValueError) as exc:
+        raise _fail(path, str(exc)) from None
     fn = getattr(obj, "check", None)
     if callable(fn):
         try:

@@ -45,7 +45,7 @@ import cv2
 import numpy as np
 from tactile_force.edge.bundle import Bundle, load_bundle, write_bundle
 from tactile_force.edge.data_stats import DataStats, frames_data_stats
-from tactile_force.edge.dataset import AuthorsDataset
+from tactile_force.edge.dataset import AuthorsDataset, read_image
 from tactile_force.edge.errors import DatasetError, TactileForceError
 from tactile_force.edge.frames import FRAME_SHAPE
 from tactile_force.edge.interval import fit_interval
@@ -177,11 +177,11 @@ def read_frames(paths: list[str | os.PathLike], limit: int | None = None) -> tup
         p = Path(raw)
         before = len(frames)
         if p.is_dir() and (p / "images").is_dir():
-            try:
+            try:  # frames judged at open and read as they are (never converted), as every labelled-data reader
                 ds = AuthorsDataset(p)
+                frames += [read_image(ds.image_path(n), shape=ds.shape) for n in ds.ids]
             except DatasetError as exc:
                 raise CompressError(f"--frames: {exc}") from None
-            frames += [_check(cv2.imread(str(ds.image_path(n))), str(ds.image_path(n))) for n in ds.ids]
         elif p.is_dir():
             files = sorted(f for f in p.iterdir() if f.suffix.lower() in IMAGE_SUFFIXES and f.is_file())
             if not files:

@@ -6,10 +6,14 @@ from __future__ import annotations
 
 import json
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+
+from ..checks import check_fields
+from ..errors import OptionsError
+from ..typed_json import check
 
 
 def max_deformation(depth: np.ndarray) -> float:
@@ -23,8 +27,15 @@ def max_deformation(depth: np.ndarray) -> float:
 class MaxDeformationBaseline:
     """force_n = polyval(coeffs, max_deformation(depth)); coeffs highest power first."""
 
-    coeffs: tuple[float, ...]
-    degree: int = 3
+    coeffs: tuple[float, ...] = field(metadata=check(nonempty=True, expected="polynomial coefficients (numbers, "
+                                                                             "highest power first)"))
+    degree: int = field(default=3, metadata=check(ge=0))
+
+    def __post_init__(self) -> None:
+        check_fields(self)
+        if len(self.coeffs) != self.degree + 1:
+            raise OptionsError(f"MaxDeformationBaseline.coeffs: {len(self.coeffs)} coefficients; expected degree + 1 "
+                               f"= {self.degree + 1}")
 
     @classmethod
     def fit(cls, depths, forces_n, degree: int = 3) -> MaxDeformationBaseline:

@@ -18,6 +18,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from ..checks import expect
 from .normals import MappingError, _load_npz
 
 LUT_FORMAT = "tactile_force.depth_lut"
@@ -201,6 +202,9 @@ class NormalLUT:
     def __init__(self, lut: np.ndarray, bin_width: float, background: np.ndarray,
                  px_per_mm: float = float("nan"), ball_radius_mm: float = float("nan"),
                  report: dict | None = None) -> None:
+        expect(lut, np.ndarray, "NormalLUT.lut", "a (B, B, B, 3) float array of unit normals")
+        expect(bin_width, float, "NormalLUT.bin_width", "a colour bin width > 0 (grey levels)", gt=0)
+        expect(background, np.ndarray, "NormalLUT.background", "an H x W x 3 uint8 BGR no-contact frame")
         b = lut.shape[0]
         if lut.ndim != 4 or lut.shape != (b, b, b, 3):
             raise MappingError(f"LUT shape {lut.shape}: expected (B, B, B, 3)")

@@ -16,23 +16,23 @@ clamped to +-``max_slope`` (the gel's curved edge), NaN/inf become 0 (flat).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
+
+from ..checks import check_fields
+from ..typed_json import check
 
 
 @dataclass(frozen=True, slots=True)
 class GradientGuards:
     """nz_min: floor of n_z (unitless, > 0); max_slope: |dh/dx|, |dh/dy| clamp (px/px)."""
 
-    nz_min: float = 0.1
-    max_slope: float = 4.0
+    nz_min: float = field(default=0.1, metadata=check(gt=0, le=1))
+    max_slope: float = field(default=4.0, metadata=check(gt=0))
 
     def __post_init__(self) -> None:
-        if not (0.0 < self.nz_min <= 1.0):
-            raise ValueError(f"GradientGuards.nz_min={self.nz_min}: expected 0 < nz_min <= 1")
-        if not (self.max_slope > 0.0 and np.isfinite(self.max_slope)):
-            raise ValueError(f"GradientGuards.max_slope={self.max_slope}: expected a finite value > 0")
+        check_fields(self)
 
 
 def normals_to_gradients(

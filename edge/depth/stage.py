@@ -32,8 +32,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import FrameError
+from ..checks import check_fields, expect
+from ..errors import FrameError, OptionsError
 from ..frames import FRAME_COLS, FRAME_ROWS, FRAME_SHAPE, check_frame, exposure_problem
+from ..typed_json import check
 from .calibration import NormalLUT
 from .depth_image import exact_depth_image, paper_depth_image
 from .gradients import GradientGuards, normals_to_gradients
@@ -101,50 +103,41 @@ class DepthOptions:
     depth image made before.
     """
 
-    mapping: str | os.PathLike
-    mode: str = "exact"
-    levels_per_px: float = 255.0 / 20.0
-    paper_scale: float = 255.0 * 1000.0
-    gel_width_m: float = 0.01832
-    gel_height_m: float = 0.02505
+    mapping: str | os.PathLike = field(metadata=check(
+        nonempty=True, expected="a path to the colour->normal .npz (str or os.PathLike)"))
+    mode: str = field(default="exact", metadata=check(choices=MODES))
+    levels_per_px: float = field(default=255.0 / 20.0, metadata=check(gt=0))
+    paper_scale: float = field(default=255.0 * 1000.0, metadata=check(gt=0))
+    gel_width_m: float = field(default=0.01832, metadata=check(gt=0))
+    gel_height_m: float = field(default=0.02505, metadata=check(gt=0))
     guards: GradientGuards = field(default_factory=GradientGuards)
-    saturated_fraction: float = 0.5
-    solver_dtype: str = "float32"
-    mapping_step: int = 1
-    paper_dilation_px: int | None = None
-    downscale: int = 1
+    saturated_fraction: float = field(default=0.5, metadata=check(ge=0, le=1))
+    solver_dtype: str = field(default="float32", metadata=check(choices=("float32", "float64")))
+    mapping_step: int = field(default=1, metadata=check(choices=(1, 2), expected="1 (every pixel) or 2"))
+    paper_dilation_px: int | None = field(default=None, metadata=check(
+        ge=0, expected="pixels >= 0 or None (evaluate everywhere)"))
+    downscale: int = field(default=1, metadata=check(ge=1))
     reduction: str = ""
 
     def __post_init__(self) -> None:
-        if self.mode not in MODES:
-            raise ValueError(f"DepthOptions.mode={self.mode!r}: expected one of {MODES}")
-        if self.mapping_step not in (1, 2):
-            raise ValueError(f"DepthOptions.mapping_step={self.mapping_step!r}: expected 1 (every pixel) or 2")
-        if self.paper_dilation_px is not None and not (isinstance(self.paper_dilation_px, int)
-                                                       and self.paper_dilation_px >= 0):
-            raise ValueError(f"DepthOptions.paper_dilation_px={self.paper_dilation_px!r}: expected pixels >= 0 "
-                             "or None (evaluate everywhere)")
+        check_fields(self)
         k = self.downscale
-        if isinstance(k, bool) or not isinstance(k, int) or k < 1 or FRAME_ROWS % k or FRAME_COLS % k:
-            raise ValueError(f"DepthOptions.downscale={k!r}: expected an integer k >= 1 dividing "
-                             f"{FRAME_ROWS} and {FRAME_COLS} (1, 2, 4, 5, 8, ...)")
+        if FRAME_ROWS % k or FRAME_COLS % k:
+            raise OptionsError(f"DepthOptions.downscale={k!r}: expected an integer k >= 1 dividing "
+                               f"{FRAME_ROWS} and {FRAME_COLS} (1, 2, 4, 5, 8, ...)")
         if k > 1 and (FRAME_ROWS // k < 2 or FRAME_COLS // k < 2):
-            raise ValueError(f"DepthOptions.downscale={k}: the depth grid needs at least 2 x 2 pixels")
+            raise OptionsError(f"DepthOptions.downscale={k}: the depth grid needs at least 2 x 2 pixels")
         if k > 1 and self.mode == "paper":
-            raise ValueError(f"DepthOptions.downscale={k}: paper mode runs at full resolution (downscale=1), "
-                             "as the authors' checkpoints were trained")
+            raise OptionsError(f"DepthOptions.downscale={k}: paper mode runs at full resolution (downscale=1), "
+                               "as the authors' checkpoints were trained")
         if k > 1 and self.mapping_step != 1:
-            raise ValueError(f"DepthOptions.mapping_step={self.mapping_step} with downscale={k}: at the network "
-                             "resolution the mapping runs on every grid pixel (mapping_step=1)")
+            raise OptionsError(f"DepthOptions.mapping_step={self.mapping_step} with downscale={k}: at the network "
+                               "resolution the mapping runs on every grid pixel (mapping_step=1)")
         if k > 1:
             try:
                 frame_reducer(k, self.reduction)
             except ValueError as exc:
-                raise ValueError(f"DepthOptions.reduction={self.reduction!r} with downscale={k}: {exc}") from None
-        for name in ("levels_per_px", "paper_scale", "gel_width_m", "gel_height_m"):
-            v = getattr(self, name)
-            if not (np.isfinite(v) and v > 0):
-                raise ValueError(f"DepthOptions.{name}={v}: expected a finite value > 0")
+                raise OptionsError(f"DepthOptions.reduction={self.reduction!r} with downscale={k}: {exc}") from None
 
 
 @dataclass(slots=True)
@@ -168,6 +161,7 @@ class DepthStage:
     reduced to 320/k x 240/k); buffers and tables are made once."""
 
     def __init__(self, options: DepthOptions) -> None:
+        expect(options, DepthOptions, "DepthStage.options", "a DepthOptions(mapping=...)")
         self.options = options
         arrays = _load_npz(options.mapping)
         self.mlp: PaperMLP | None = None

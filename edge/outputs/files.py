@@ -11,9 +11,12 @@ import json
 import math
 import os
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import TextIO
 
+from ..checks import expect
+from ..errors import ArgumentTypeError
 from ..reading import ForceReading, IntervalState
 
 FIELDS = list(ForceReading("", 0, 0, 0.0).as_dict())
@@ -45,6 +48,9 @@ def format_reading(r: ForceReading) -> str:
 
 class _FileWriter:
     def __init__(self, path: str | os.PathLike, fsync: bool = False) -> None:
+        owner = type(self).__name__
+        expect(path, (str, os.PathLike), f"{owner}.path", "a file path", nonempty=True)
+        expect(fsync, bool, f"{owner}.fsync")
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._fh: TextIO = open(self.path, "w", newline="")
@@ -94,6 +100,12 @@ class StdoutWriter:
     rewritten in place with the newest force, flags and the rolling p99 from ``p99_ms()``."""
 
     def __init__(self, live: bool = False, stream: TextIO | None = None, p99_ms=None, every: int = 1) -> None:
+        expect(live, bool, "StdoutWriter.live")
+        if stream is not None and not callable(getattr(stream, "write", None)):
+            raise ArgumentTypeError(f"StdoutWriter.stream={stream!r}: expected a text stream with write() "
+                                    f"(e.g. sys.stderr) or None (stdout), got {type(stream).__name__}")
+        expect(p99_ms, Callable | None, "StdoutWriter.p99_ms", "a callable returning the p99 in ms, or None")
+        expect(every, int, "StdoutWriter.every", "an integer >= 1 (readings per status line update)", ge=1)
         self.stream = stream or sys.stdout
         self.live = live
         self._p99 = p99_ms

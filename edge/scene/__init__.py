@@ -33,7 +33,8 @@ A ``digit`` sensor follows unplug / replug through udev events (pyudev) unless
 
 Input paths (bundles, replay folders, videos, backgrounds, depth mappings) are relative to
 the scene file; output paths are relative to the working directory (never the package
-folder). ``~`` and ``$VARS`` are expanded. Every key is checked for type, range and (paths)
+folder). ``~`` and ``$VARS`` are expanded; a variable that is not set is an error naming
+the key and the variable. Every key is checked for type, range and (paths)
 readability / writability by :func:`load_scene` before anything heavy is loaded, by the
 package's one typed reader (:mod:`tactile_force.edge.typed_json`); errors name the file and
 the dotted key, e.g. ``scene.toml: sensor[0].fps: expected a number > 0, got 'fast'``. No
@@ -46,8 +47,10 @@ class and one entry.
 
 The package, split by job: :mod:`.model` (what a scene is), :mod:`.read` (reading and
 checking it), :mod:`.kinds` (the source-kind registry and its openers), :mod:`.describe`
-(writing it back to TOML and describing it), :mod:`.build` (building it). The public names
-are importable from here; the submodules are imported when one of their names is first used.
+(writing it back to TOML and describing it), :mod:`.preflight` (every check ``run`` makes
+before it opens a device; ``scene show`` makes the same), :mod:`.build` (building it). The
+public names are importable from here; the submodules are imported when one of their names
+is first used.
 """
 
 from __future__ import annotations
@@ -105,6 +108,7 @@ if TYPE_CHECKING:
         open_source,
         udev_watcher,
     )
+    from .preflight import run_refusals
     from .read import (
         check_scene,
         load_scene,
@@ -130,6 +134,7 @@ _LAZY = {
     "VirtualKeys": "kinds",
     "open_source": "kinds",
     "udev_watcher": "kinds",
+    "run_refusals": "preflight",
     "check_scene": "read",
     "load_scene": "read",
     "output_problem": "read",
@@ -191,6 +196,7 @@ __all__ = [
     "output_table",
     "parse_scene",
     "ros2_topic_ok",
+    "run_refusals",
     "save_scene",
     "scene_from_flags",
     "scene_problems",

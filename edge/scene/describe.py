@@ -70,7 +70,7 @@ def scene_to_toml(scene: Scene) -> str:
 def save_scene(scene: Scene, path: str | os.PathLike) -> Path:
     """Write :func:`scene_to_toml` to ``path`` (relative to the working directory), in one step
     (a reader never sees half a file; an interrupted write leaves ``path`` as it was)."""
-    p = _out_path(str(path))
+    p = _out_path(str(path), "--save-scene")
     if problem := output_problem(p):
         raise SceneError(f"--save-scene: {problem}")
     from ..atomic import staged_file

@@ -21,7 +21,7 @@ else:  # Python 3.10: the same parser from PyPI (a core dependency there)
 
 from ..errors import SceneError
 from ..gate import GateOptions
-from ..typed_json import Check, TypedJsonError, from_json, read_value
+from ..typed_json import Check, TypedJsonError, expand_path, from_json, read_value
 from .kinds import SOURCE_KINDS, SOURCES
 from .model import (
     PACKAGE_DIR,
@@ -36,24 +36,24 @@ _TABLE = "a table"
 _SOURCE = Check(choices=SOURCES)
 
 
-def _expand(value: str) -> Path:
-    return Path(os.path.expandvars(os.path.expanduser(value)))
+def _expand(value: str, flag: str) -> Path:
+    """A path given by ``flag`` with ``~`` and ``$VARS`` expanded; SceneError naming the flag
+    and the variable when one is not set (it would stay in the path as written)."""
+    try:
+        return expand_path(value)
+    except ValueError as exc:
+        raise SceneError(f"{flag}: {exc}") from None
 
 
-def _out_path(value: str) -> Path:
+def _out_path(value: str, flag: str = "--out") -> Path:
     """An output path: relative to the working directory, never the scene or package folder."""
-    return _expand(value).absolute()
+    return _expand(value, flag).absolute()
 
 
 def _gate(table: dict[str, Any], base: GateOptions, key: str) -> GateOptions:
-    """``base`` with the GateOptions fields of ``table`` replaced (typed reader: keys and
-    types), then checked by GateOptions.validate; TypedJsonError naming ``key``."""
-    opts = from_json(GateOptions, table, key, defaults=base, table=_TABLE)
-    try:
-        opts.validate()
-    except ValueError as exc:
-        raise TypedJsonError(f"{key}: {exc}") from None
-    return opts
+    """``base`` with the GateOptions fields of ``table`` replaced (typed reader: keys, types
+    and ranges; GateOptions checks the rules across fields when made); TypedJsonError naming ``key``."""
+    return from_json(GateOptions, table, key, defaults=base, table=_TABLE)
 
 
 def _sensor(raw: Any, i: int, gate_table: dict[str, Any], base: Path) -> SensorSpec:
@@ -124,8 +124,7 @@ def parse_scene(data: dict, path: Path | None, base: Path | None = None) -> Scen
 def _readable(p: Path, want: str) -> str | None:
     """Why ``p`` cannot be read as ``want`` ('file', 'folder' or 'file or folder'), else None."""
     if not p.exists():
-        unset = [w for w in str(p).split("/") if w.startswith("$")]
-        return f"{p} not found" + (f" (environment variable {unset[0]} is not set)" if unset else "")
+        return f"{p} not found"
     if want == "file" and not p.is_file():
         return f"{p} is not a file"
     if want == "folder" and not p.is_dir():
@@ -238,7 +237,7 @@ def source_table(source: str) -> dict[str, Any]:
         return {"source": "camera", **({"device": int(arg) if arg.isdigit() else arg} if arg else {})}
     if source == "virtual":
         return {"source": "virtual"}
-    p = _expand(source)
+    p = _expand(source, "--source")
     if p.is_dir():
         return {"source": "replay", "path": str(p.absolute())}
     if p.is_file():
@@ -266,7 +265,7 @@ def scene_from_flags(source: str, bundle: str = "default", background: str | Non
     directory, or ``package:FILE``)."""
     sensor = {"name": name, **source_table(source)}
     if background is not None:
-        sensor["background"] = str(_expand(background).absolute())
+        sensor["background"] = str(_expand(background, "--background").absolute())
     if fps is not None:
         sensor["fps"] = int(fps) if sensor["source"] == "digit" and float(fps).is_integer() else fps
     outs = [output_table(o) for o in outputs or []]
@@ -280,7 +279,7 @@ def scene_from_flags(source: str, bundle: str = "default", background: str | Non
         outs.append({"kind": "ros2", "topic": ros2})
     outs.insert(0, {"kind": "stdout", "live": live_status})
     data: dict[str, Any] = {
-        "runtime": {"bundle": bundle if bundle == "default" else str(_expand(bundle).absolute())},
+        "runtime": {"bundle": bundle if bundle == "default" else str(_expand(bundle, "--bundle").absolute())},
         "sensor": [sensor], "output": outs}
     if depth_mapping is not None:
         data["depth"] = {"mapping": depth_mapping}

@@ -20,8 +20,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from ..checks import check_fields, expect
 from ..errors import FrameError
 from ..frames import FRAME_COLS, FRAME_ROWS, check_frame
+from ..typed_json import check
 from .dome import DomeOptions, dome_height_mm
 from .indenters import Indenter, get_indenter
 from .mechanics import (
@@ -53,17 +55,22 @@ class VirtualDigitOptions:
     of the analytic model; seed: seed of the internal noise generator.
     """
 
-    px_per_mm: float = 19.58
-    background: str | os.PathLike | None = None
-    noise_std_bgr: tuple[float, float, float] = (2.4, 1.3, 2.1)
-    blur_px: float = 1.2
-    skirt_mm: float = 0.9
+    px_per_mm: float = field(default=19.58, metadata=check(
+        ge=5, le=60, expected="pixels per mm of gel in [5, 60] (about 17-20 for a DIGIT)"))
+    background: str | os.PathLike | None = field(default=None, metadata=check(nonempty=True))
+    noise_std_bgr: tuple[float, float, float] = field(default=(2.4, 1.3, 2.1), metadata=check(
+        ge=0, expected="(B, G, R) noise levels >= 0 (0..255 units)"))
+    blur_px: float = field(default=1.2, metadata=check(ge=0))
+    skirt_mm: float = field(default=0.9, metadata=check(gt=0))
     edge_zone_mm: float = 2.5
-    normal_to_rgb_mlp: str | os.PathLike | None = None
-    seed: int = 0
+    normal_to_rgb_mlp: str | os.PathLike | None = field(default=None, metadata=check(nonempty=True))
+    seed: int = field(default=0, metadata=check(ge=0))
     gel: GelOptions = field(default_factory=GelOptions)
     dome: DomeOptions = field(default_factory=DomeOptions)
     shading: ShadingOptions = field(default_factory=ShadingOptions)
+
+    def __post_init__(self) -> None:
+        check_fields(self)
 
 
 @dataclass(frozen=True, slots=True)
@@ -76,11 +83,16 @@ class ContactSpec:
     indenter's own); texture_phase: phase (rad) of the print-layer ridges.
     """
 
-    indenter: str | Indenter
-    center_px: tuple[float, float] = (160.0, 120.0)
+    indenter: str | Indenter = field(metadata=check(
+        nonempty=True, expected="an indenter name (see indenters.INDENTERS) or an Indenter"))
+    center_px: tuple[float, float] = field(default=(160.0, 120.0), metadata=check(
+        expected="(row, col) of the indenter axis in frame pixels"))
     rotation_deg: float = 0.0
     stiffness: str | None = None
     texture_phase: float = 0.0
+
+    def __post_init__(self) -> None:
+        check_fields(self)
 
 
 @dataclass(slots=True)
@@ -115,13 +127,12 @@ class VirtualDigit:
     """
 
     def __init__(self, options: VirtualDigitOptions = VirtualDigitOptions()) -> None:
+        expect(options, VirtualDigitOptions, "VirtualDigit.options")
         self.options = options
         self.background = _load_background(options.background)
         self._bgf = self.background.astype(np.float32)
         self.dome_mm = dome_height_mm((FRAME_ROWS, FRAME_COLS), options.dome)
         ppm = options.px_per_mm
-        if not (5.0 <= ppm <= 60.0):
-            raise ValueError(f"px_per_mm: {ppm}; expected about 17-20 for a DIGIT")
         if options.normal_to_rgb_mlp is not None:
             self.shader: MlpShader | AnalyticShader = MlpShader(options.normal_to_rgb_mlp, ppm)
         else:

@@ -14,9 +14,11 @@ from pathlib import Path
 
 import numpy as np
 
+from ..checks import check_fields, expect
 from ..dataset import AuthorsDatasetWriter
 from ..errors import DatasetError
 from ..progress import progress
+from ..typed_json import check
 from .digit import ContactSpec, VirtualDigit, VirtualDigitOptions
 from .indenters import STIFFNESS_CLASSES, get_indenter, paper_indenter_names
 from .sampling import ForceDistribution, led_gain, sample_contact
@@ -34,18 +36,21 @@ class DatasetOptions:
     start_id: first sample number N; progress: draw a progress bar on stderr.
     """
 
-    n: int = 1000
-    seed: int = 0
+    n: int = field(default=1000, metadata=check(ge=1, expected="an integer >= 1 (samples)"))
+    seed: int = field(default=0, metadata=check(ge=0))
     indenters: tuple[str, ...] | None = None
     forces: ForceDistribution = field(default_factory=ForceDistribution)
-    frames_per_grasp: int = 8
-    edge_fraction: float = 0.15
+    frames_per_grasp: int = field(default=8, metadata=check(ge=1))
+    edge_fraction: float = field(default=0.15, metadata=check(ge=0, le=1))
     stiffness_classes: tuple[str, ...] | None = STIFFNESS_CLASSES
-    no_contact_fraction: float = 0.0
-    led_spread: float = 0.03
+    no_contact_fraction: float = field(default=0.0, metadata=check(ge=0, le=1))
+    led_spread: float = field(default=0.03, metadata=check(ge=0))
     digit: VirtualDigitOptions = field(default_factory=VirtualDigitOptions)
-    start_id: int = 0
+    start_id: int = field(default=0, metadata=check(ge=0))
     progress: bool = True
+
+    def __post_init__(self) -> None:
+        check_fields(self)
 
 
 @dataclass(slots=True)
@@ -104,9 +109,9 @@ def generate_dataset(root: str | os.PathLike, options: DatasetOptions = DatasetO
 
     Refuses a root that already holds images/ (no silent mixing of datasets).
     """
+    expect(root, (str, os.PathLike), "generate_dataset.root", "an output folder path", nonempty=True)
+    expect(options, DatasetOptions, "generate_dataset.options")
     root = Path(root)
-    if options.n < 1:
-        raise ValueError(f"n: {options.n}; expected at least 1 sample")
     if (root / "images").is_dir() and any((root / "images").iterdir()):
         raise DatasetError(f"{root}: already holds images/; choose an empty output folder")
     digit = VirtualDigit(replace(options.digit, seed=options.seed))

@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..checks import check_fields
+from ..errors import OptionsError
 from ..frames import FRAME_COLS, FRAME_ROWS
+from ..typed_json import check
 from .digit import ContactSpec
 from .indenters import STIFFNESS_CLASSES, get_indenter
 
@@ -17,15 +20,22 @@ class ForceDistribution:
     dataset; ``below_fraction`` of samples in [0.05, low_n) and ``above_fraction`` in
     (high_n, max_n]."""
 
-    low_n: float = 1.0
-    high_n: float = 15.0
-    max_n: float = 20.0
-    below_fraction: float = 0.0
-    above_fraction: float = 0.0
+    low_n: float = field(default=1.0, metadata=check(gt=0))
+    high_n: float = field(default=15.0, metadata=check(gt=0))
+    max_n: float = field(default=20.0, metadata=check(gt=0))
+    below_fraction: float = field(default=0.0, metadata=check(ge=0, le=1))
+    above_fraction: float = field(default=0.0, metadata=check(ge=0, le=1))
+
+    def __post_init__(self) -> None:
+        check_fields(self)
+        if not self.low_n <= self.high_n <= self.max_n:
+            raise OptionsError(f"ForceDistribution: low_n={self.low_n}, high_n={self.high_n}, max_n={self.max_n}; "
+                               "expected low_n <= high_n <= max_n (N)")
+        if self.below_fraction + self.above_fraction > 1:
+            raise OptionsError(f"ForceDistribution: below_fraction={self.below_fraction} + above_fraction="
+                               f"{self.above_fraction}; expected a sum in [0, 1]")
 
     def sample(self, rng: np.random.Generator, n: int) -> np.ndarray:
-        if not (0 <= self.below_fraction + self.above_fraction <= 1):
-            raise ValueError("ForceDistribution: below_fraction + above_fraction must lie in [0, 1]")
         u = rng.random(n)
         f = rng.uniform(self.low_n, self.high_n, n)
         lo = u < self.below_fraction

@@ -14,6 +14,7 @@ import time
 
 import numpy as np
 
+from ..checks import expect
 from ..frames import FrameSource, TimedFrame
 from .digit import VirtualDigit, VirtualDigitOptions
 from .indenters import paper_indenter_names
@@ -49,11 +50,21 @@ class VirtualDigitSource(FrameSource):
                  realtime: bool = False, start_ns: int | None = None, name: str = "virtual-digit",
                  options: VirtualDigitOptions | None = None, render_ahead: int = 2) -> None:
         super().__init__()
+        c = "VirtualDigitSource"
+        expect(seed, int, f"{c}.seed", ge=0)
+        expect(n_grasps, int, f"{c}.n_grasps", "an integer >= 1 (grasps before the stream ends)", ge=1)
+        expect(fps, float, f"{c}.fps", "a frame rate > 0", gt=0)
+        expect(peak_n, tuple[float, float], f"{c}.peak_n", "(low, high) peak forces in N, >= 0", ge=0)
+        expect(lead_in_s, float, f"{c}.lead_in_s", "seconds >= 0", ge=0)
+        expect(indenters, list[str] | None, f"{c}.indenters", "a list of indenter names, or None (the paper's 18)")
+        expect(edge_fraction, float, f"{c}.edge_fraction", ge=0, le=1)
+        expect(led_drift, float, f"{c}.led_drift", ge=0)
+        expect(realtime, bool, f"{c}.realtime")
+        expect(start_ns, int | None, f"{c}.start_ns", "monotonic ns, or None (now)")
+        expect(name, str, f"{c}.name", nonempty=True)
+        expect(options, VirtualDigitOptions | None, f"{c}.options", "a VirtualDigitOptions or None (the defaults)")
+        expect(render_ahead, int, f"{c}.render_ahead", "frames >= 0 (0 renders inside read())", ge=0)
         self.name = name
-        if n_grasps < 1 or not (fps > 0):
-            raise ValueError(f"n_grasps={n_grasps}, fps={fps}: expected n_grasps >= 1 and fps > 0")
-        if render_ahead < 0:
-            raise ValueError(f"render_ahead={render_ahead}: expected frames >= 0 (0 renders inside read())")
         opts = options or VirtualDigitOptions()
         from dataclasses import replace
 

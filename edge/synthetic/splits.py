@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..checks import check_fields
 from .indenters import paper_indenter_names
 
 #: Seeds of the three paper-like splits.
@@ -25,6 +26,9 @@ class IndenterSplit:
     train: tuple[str, ...]
     val: tuple[str, ...]
     test: tuple[str, ...]
+
+    def __post_init__(self) -> None:
+        check_fields(self)
 
     def part_of(self, indenter: str) -> str | None:
         """'train' / 'val' / 'test' for an indenter, None if the split does not hold it."""

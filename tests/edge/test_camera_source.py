@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 import pytest
 
-from tactile_force.edge.errors import SourceError
+from tactile_force.edge.errors import OptionsError, SourceError
 from tactile_force.edge.sources import CameraSource, StreamLost
 from tests.bridge.fakes import FakeCamera, landscape
 
@@ -122,7 +122,7 @@ def test_configure_hook_error_releases_the_capture(portraits):
 def test_bad_arguments_are_named(tmp_path):
     with pytest.raises(SourceError, match=r"camera .*video9: no such device"):
         CameraSource(str(tmp_path / "video9"))
-    with pytest.raises(SourceError, match=r"max_failures=0.*expected integers >= 1"):
+    with pytest.raises(OptionsError, match=r"CameraSource\.max_failures=0: expected an integer >= 1"):
         CameraSource(0, max_failures=0, open_capture=Factory())
 
 

@@ -56,7 +56,7 @@ def _scene(tmp_path: Path, bundle: Path, aurova: Path, extra: str = "", name: st
     ('[[sensor]]\nsource = "usb"\n', r"sensor\[0\]\.source: expected one of 'camera', .*got 'usb'"),
     ('[[sensor]]\nsource = "replay"\n', r"sensor\[0\]\.path: missing; expected a replay folder"),
     ('[[sensor]]\nsource = "camera"\ngate = { blur = 4 }\n',
-     r"sensor\[0\]\.gate: gate.blur=4: expected an odd integer"),
+     r"sensor\[0\]\.gate: GateOptions\.blur=4: expected an odd integer"),
     ('[[sensor]]\nsource = "camera"\n[[output]]\nkind = "csv"\n', r"output\[0\]: output 'csv' needs 'path'"),
     ('[runtime\n', r"not valid TOML"),
     ('', r"no \[\[sensor\]\] tables"),

@@ -26,9 +26,9 @@ SENSOR = '[[sensor]]\nname = "left"\nsource = "camera"\n'
 #: (scene text, the words the error must hold: the dotted key, what was expected, what was got)
 BAD_SCENES = {
     "gate threshold a string": ('[gate]\nthreshold = "high"\n' + SENSOR,
-                                r"gate\.threshold: expected a number, got 'high'"),
+                                r"gate\.threshold: expected a number > 0 and < 255, got 'high'"),
     "gate background_frames a string": ('[gate]\nbackground_frames = "5"\n' + SENSOR,
-                                        r"gate\.background_frames: expected an integer, got '5'"),
+                                        r"gate\.background_frames: expected an integer >= 1, got '5'"),
     "runtime not a table": ("runtime = 5\n" + SENSOR, r"runtime: expected a table, got 5"),
     "sensor a list of numbers": ("sensor = [1, 2]\n", r"sensor\[0\]: expected a table, got 1"),
     "fps inf": (SENSOR + "fps = inf\n", r"sensor\[0\]\.fps: expected a finite number > 0, got inf"),
@@ -39,7 +39,7 @@ BAD_SCENES = {
     "deadline inf": ("[runtime]\ndeadline_ms = inf\n" + SENSOR,
                      r"runtime\.deadline_ms: expected a finite number > 0, got inf"),
     "gate per sensor bool for float": (SENSOR + "gate = { threshold = true }\n",
-                                       r"sensor\[0\]\.gate\.threshold: expected a number, got True"),
+                                       r"sensor\[0\]\.gate\.threshold: expected a number > 0 and < 255, got True"),
     "output not a table": ("output = 3\n" + SENSOR, r"output: expected \[\[output\]\] tables, got 3"),
     "ros2 without topic": (SENSOR + '[[output]]\nkind = "ros2"\n', r"output\[0\]: output 'ros2' needs 'topic'"),
     "mcap without path": (SENSOR + '[[output]]\nkind = "mcap"\n', r"output\[0\]: output 'mcap' needs 'path'"),
