@@ -79,11 +79,11 @@ def cmd_latency(args, argv) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """``python -m benchmarks``; the loggers it quietens are restored when it returns."""
-    from tactile_force.edge.logs import quiet_loggers
+    from tactile_force.edge.report.logs import quiet_loggers
 
     # Latency bundles carry random weights and no data_stats: the runtime's one warning per
     # bundle that its out-of-distribution check is skipped is expected here, every row.
-    with quiet_loggers("tactile_force.edge.data_stats"):
+    with quiet_loggers("tactile_force.edge.bundle.data_stats"):
         return _main(argv)
 
 

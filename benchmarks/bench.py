@@ -7,7 +7,7 @@ memory (:func:`benchmarks.latency.measure`), while the machine is watched
 (:class:`benchmarks.machine.CpuWindow`); the under-budget verdict per bundle is
 :func:`benchmarks.check.judge`'s (PASS / OVER_BUDGET / MACHINE_BUSY). With labelled data the
 error comes from a replay of that folder through the same runtime ``tactile-force run``
-builds, with the same metric code (:func:`tactile_force.edge.cli_runtime.readings_error`).
+builds, with the same metric code (:func:`tactile_force.edge.cli.run.readings_error`).
 
 The result is a :class:`BenchReport`, written as ``report.json`` (a stable contract, see
 docs/bench.md), ``report.md`` and ``pareto.png`` (error against p99 latency, the budget line).
@@ -105,7 +105,7 @@ class BundleResult:
     with), and its verdict against the budget: PASS, OVER_BUDGET, MACHINE_BUSY, or NO_READINGS
     (most bench frames gave no force, e.g. the bundle fails on them: ``note`` says why).
     ``precision`` is what the graph holds, as ``bundle verify`` reads it
-    (:func:`tactile_force.edge.graph_facts.graph_precision`), not the manifest's word; ``note``
+    (:func:`tactile_force.edge.bundle.graph_facts.graph_precision`), not the manifest's word; ``note``
     says when the manifest claims another."""
 
     path: str
@@ -222,7 +222,8 @@ def contact_frames(n: int = 64, seed: int = 0):
 
     rgb: list[np.ndarray] = []
     force: list[float] = []
-    with _quiet("tactile_force.edge.gate"):  # renders the gate cannot judge are dropped here, not warned about
+    # renders the gate cannot judge are dropped here, not warned about
+    with _quiet("tactile_force.edge.gate.contact_gate"):
         bgs, renders = contact_renders(seed)
         for frame, f, g in renders:
             if len(rgb) >= n:
@@ -239,7 +240,7 @@ def _depth_factory(manifest) -> Callable[[], object] | None:
     calibration (:func:`benchmarks.frames.depth_stage`), which the frames come from."""
     if not manifest.needs_depth or manifest.depth is None:
         return None
-    from tactile_force.edge.runtime import build_depth_stage
+    from tactile_force.edge.runtime.loop import build_depth_stage
 
     return lambda: build_depth_stage(None, manifest)
 
@@ -274,12 +275,12 @@ def replay_readings(bundle: Path, data: Path, background: Path | None, threads: 
 def replay_error(bundle: Path, data: Path, background: Path | None, threads: int = 1,
                  readings: list | None = None, warn: Callable[[str], None] | None = None) -> BenchError | None:
     """Error of ``bundle`` on the labelled folder ``data`` as ``tactile-force run`` reports it
-    (:func:`replay_readings`, then :func:`tactile_force.edge.cli_runtime.readings_error`);
+    (:func:`replay_readings`, then :func:`tactile_force.edge.cli.run.readings_error`);
     None when no frame got a CNN reading. ``readings``: an earlier replay's, to reuse.
 
     Raises a TactileForceError subclass (exit 2) when ``data`` or ``background`` is unusable,
     or when ``data`` has no truth (not a labelled folder)."""
-    from tactile_force.edge.cli_runtime import readings_error
+    from tactile_force.edge.cli.run import readings_error
     from tactile_force.edge.errors import DatasetError
 
     if readings is None:
@@ -330,8 +331,8 @@ def bench_bundle(path: Path, pool, frames: int = 1000, threads: int = 1, budget_
     """
     import time
 
-    from tactile_force.edge.bundle import load_bundle
-    from tactile_force.edge.graph_facts import bundle_precision
+    from tactile_force.edge.bundle.graph_facts import bundle_precision
+    from tactile_force.edge.bundle.store import load_bundle
 
     from .bundles import ModelConfig
     from .check import JUDGED, judge
@@ -347,7 +348,8 @@ def bench_bundle(path: Path, pool, frames: int = 1000, threads: int = 1, budget_
     depth = _depth_factory(m)
 
     def once():
-        with _quiet("tactile_force.edge.runtime", "tactile_force.edge.gate"):  # about the bench's own frames
+        # warnings about the bench's own frames
+        with _quiet("tactile_force.edge.runtime.loop", "tactile_force.edge.gate.contact_gate"):
             r = measure(case, pool, bare=False, depth=depth)
         return r, r.stages[JUDGED].p99
 
@@ -376,17 +378,17 @@ def bench_bundle(path: Path, pool, frames: int = 1000, threads: int = 1, budget_
 def _quiet(*names: str):
     """Only errors from these loggers meanwhile (their warnings would be about the bench's own
     virtual frames and background, not the user's sensor)."""
-    from tactile_force.edge.logs import quiet_loggers
+    from tactile_force.edge.report.logs import quiet_loggers
 
     return quiet_loggers(*names)
 
 
 def _first_problem(bundle, pool, depth) -> str:
     """Flags and detail of the first reading without a force, over a few bench frames."""
-    from tactile_force.edge.gate import ContactGate
-    from tactile_force.edge.inference import OnnxForceModel
+    from tactile_force.edge.gate.contact_gate import ContactGate
+    from tactile_force.edge.model.onnx_model import OnnxForceModel
     from tactile_force.edge.reading import Flags
-    from tactile_force.edge.runtime import ForceRuntime, RuntimeOptions, Sensor
+    from tactile_force.edge.runtime.loop import ForceRuntime, RuntimeOptions, Sensor
 
     from .latency import MemorySource
 
@@ -426,7 +428,7 @@ def run_bench(bundles: Sequence[Path], frames: int = 1000, threads: int = 1, bud
         Frames in contact (default :func:`contact_frames`).
     """
     import cv2
-    from tactile_force.edge.progress import progress
+    from tactile_force.edge.report.progress import progress
 
     from .machine import describe_machine
 
@@ -534,7 +536,7 @@ def markdown(report: BenchReport) -> str:
 
 def plot(report: BenchReport, path: Path) -> Path:
     """Error against p99 latency, one point per bundle, the budget line (OpenCV)."""
-    from tactile_force.edge.plots import ParetoPoint, error_vs_latency
+    from tactile_force.edge.report.plots import ParetoPoint, error_vs_latency
 
     pts = []
     for b in report.bundles:

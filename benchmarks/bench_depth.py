@@ -117,7 +117,7 @@ def main() -> None:
     mlp = DATA / "aurova_digit_depth_mlp.npz"
     lut_stage = DepthStage(DepthOptions(lut_path))
     grid_stage = DepthStage(DepthOptions(lut_path, downscale=4))
-    from tactile_force.edge.reduce import default_reduction, reduce_frames
+    from tactile_force.edge.gate.reduce import default_reduction, reduce_frames
 
     test_small = reduce_frames(test[None], default_reduction(4))[0]
     mask_small = np.ascontiguousarray(mask[::4, ::4])

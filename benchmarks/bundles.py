@@ -122,7 +122,7 @@ def trained_models() -> list[TrainedModel]:
 
 def bundle_re(path: Path) -> float:
     """Synthetic-test RE of a bundle as its manifest records it (nan when absent)."""
-    from tactile_force.edge.bundle import read_manifest
+    from tactile_force.edge.bundle.store import read_manifest
     from tactile_force.edge.errors import BundleError
 
     try:

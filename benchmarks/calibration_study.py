@@ -39,9 +39,9 @@ def _lat(model, runs: int = 2000) -> tuple[float, float]:
 
 def study() -> tuple[list[list], dict]:
     from tactile_force.edge import default_bundle_path
-    from tactile_force.edge.calibrate_force import calibrate_bundle, read_labelled
-    from tactile_force.edge.inference import OnnxForceModel
-    from tactile_force.edge.metrics import error_stats
+    from tactile_force.edge.data.metrics import error_stats
+    from tactile_force.edge.fitting.calibrate import calibrate_bundle, read_labelled
+    from tactile_force.edge.model.onnx_model import OnnxForceModel
 
     rows: list[list] = []
     info: dict = {}

@@ -80,8 +80,8 @@ def _bundles(ckpt: Path, data, int8: bool) -> Path:
 
 
 def _evaluate(bundle: Path, data) -> tuple[dict, float]:
-    from tactile_force.edge.inference import OnnxForceModel, measure_p99_ms
-    from tactile_force.edge.metrics import error_stats
+    from tactile_force.edge.data.metrics import error_stats
+    from tactile_force.edge.model.onnx_model import OnnxForceModel, measure_p99_ms
 
     model = OnnxForceModel(bundle, threads=1)
     te = data.select("test")
@@ -93,7 +93,7 @@ def _interleaved_latency(paths: dict[str, Path], rounds: int = 20, calls: int = 
     """p50 / p99 (ms) of batch-2 predicts per bundle, measured in interleaved rounds."""
     import time
 
-    from tactile_force.edge.inference import OnnxForceModel
+    from tactile_force.edge.model.onnx_model import OnnxForceModel
 
     models = {k: OnnxForceModel(p, threads=1) for k, p in paths.items()}
     rgb = np.zeros((2, 320, 240, 3), np.uint8)

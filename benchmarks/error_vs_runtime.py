@@ -20,7 +20,7 @@ from .stats import markdown_table
 def evaluate_trained(frames: int = 300) -> list[dict]:
     """One dict per (trained config, bundle): errors on both datasets and latency."""
     from tactile_force.edge import OnnxForceModel
-    from tactile_force.edge.metrics import error_report
+    from tactile_force.edge.data.metrics import error_report
 
     rows = []
     real = real_frames()
@@ -150,7 +150,7 @@ CALIBRATION_POINTER = ("`tactile-force calibrate-force` fitted on the 11 real AU
 
 NOTE = """Models: the reference recipe (`python -m benchmarks.reference`), trained from scratch on
 SYNTHETIC virtual DIGIT frames only (S1 split: 14 train / 2 val / 2 held-out test indenters).
-RE = |f_pred - f_gt| / f_gt, MAE in N (the paper's metrics, edge/metrics.py). Real frames:
+RE = |f_pred - f_gt| / f_gt, MAE in N (the paper's metrics, edge/data/metrics.py). Real frames:
 the 11 labelled AUROVA DIGIT frames of one grasp (another sensor unit, real gel, a round
 indenter); synthetic-only models are expected to do badly there, and the figures are given
 as measured. Depth variants read the paper's filtered depth images on the real frames.

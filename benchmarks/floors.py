@@ -8,7 +8,7 @@ page measures, in ONE interleaved run with that reference (one thread, frames in
 the same memory pool as the goal run, docs/benchmarks/one_downscale.md), the pieces no
 implementation of the issue's design can avoid:
 
-- the one downscale alone (edge/reduce.py, the exact 4x4 box average the model's input is);
+- the one downscale alone (edge/gate/reduce.py, the exact 4x4 box average the model's input is);
 - a check-less gate: that downscale, |reduced - background| per channel, a threshold and a
   pixel count, i.e. the least any gate that decides contact from a difference with a
   background computes (no blur, no photometric fit, no blobs, no judging check);
@@ -66,7 +66,7 @@ class CheckLessGate:
     """
 
     def __init__(self, background: np.ndarray, frame_shape: tuple[int, int, int], threshold: float = 10.0) -> None:
-        from tactile_force.edge.reduce import FrameReducer, default_reduction
+        from tactile_force.edge.gate.reduce import FrameReducer, default_reduction
 
         factor = frame_shape[0] // background.shape[0]
         self.reducer = FrameReducer(default_reduction(factor), frame_shape)
@@ -241,7 +241,7 @@ def floor_run(pool, frames: int = 2000, warmup: int = 200, eighth: Path | str | 
     docstring). Returns {name: samples in us, ..., 'machine': MachineState}."""
     from tactile_force.edge import ContactGate, GateOptions, OnnxForceModel
     from tactile_force.edge.reading import Flags
-    from tactile_force.edge.runtime import ForceRuntime, RuntimeOptions, Sensor
+    from tactile_force.edge.runtime.loop import ForceRuntime, RuntimeOptions, Sensor
 
     from .latency import MemorySource
     from .machine import CpuWindow
@@ -313,7 +313,7 @@ def floor_rows(run: dict) -> tuple[list[list[object]], list[list[object]]]:
     ref = p["reference bare"].p50
     labels = {"reference bare": "reference: bare session, c1733e6 graph, full-resolution input",
               "read frame": "reading the frame at all: one copy of 320x240x3 into a buffer",
-              "shrink": "the one downscale (edge/reduce.py, area-2x-steps x4: two OpenCV 2x2 box averages)",
+              "shrink": "the one downscale (edge/gate/reduce.py, area-2x-steps x4: two OpenCV 2x2 box averages)",
               "shrink nearest": "a point sample instead: cv2.resize INTER_NEAREST x4 (not a box average)",
               "numba shrink": "area-2x-steps as a numba kernel (same values; experiment, not a dependency)",
               "check-less gate": "check-less gate: downscale + absdiff + threshold + count",
@@ -378,7 +378,7 @@ def page(argv: list[str], frames: int = 2000) -> str:
         frame = pool.rgb[0]
         got = np.empty((frame.shape[0] // 4, frame.shape[1] // 4, 3), np.uint8)
         compiled(frame, got)
-        from tactile_force.edge.reduce import default_reduction, reduce_frames
+        from tactile_force.edge.gate.reduce import default_reduction, reduce_frames
 
         same = np.array_equal(got, reduce_frames(frame[None], default_reduction(4))[0])
         notes.append(f"The numba kernel gives {'the same values as' if same else 'OTHER values than'} the shipped "

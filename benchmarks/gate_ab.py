@@ -1,5 +1,5 @@
 """Interleaved A/B of the contact gate: the ContactGate of an older commit (``git show
-REV:edge/gate.py``, loaded beside the current package) against the current one, on the same
+REV:edge/gate/contact_gate.py``, loaded beside the current package) against the current one, on the same
 frames in one process (frame by frame, the order alternating), after checking that every
 GateResult field is bit-identical (given and live-learnt backgrounds, contact, brightness
 step, moved gel, RGB order, uniform, noise, occlusion, a re-learnt background).
@@ -24,11 +24,12 @@ import numpy as np
 
 
 def old_gate_module(rev: str) -> types.ModuleType:
-    """edge/gate.py as it was at ``rev``, importable beside the current package."""
-    src = subprocess.run(["git", "show", f"{rev}:edge/gate.py"], capture_output=True, text=True, check=True).stdout
+    """edge/gate/contact_gate.py as it was at ``rev``, importable beside the current package."""
+    src = subprocess.run(["git", "show", f"{rev}:edge/gate.py"], capture_output=True, text=True,
+                         check=True).stdout
     src = src.replace("from .", "from tactile_force.edge.")
     mod = types.ModuleType("old_gate")
-    mod.__file__ = f"<{rev}:edge/gate.py>"
+    mod.__file__ = f"<{rev}:edge/gate/contact_gate.py>"
     sys.modules["old_gate"] = mod
     exec(compile(src, mod.__file__, "exec"), mod.__dict__)  # noqa: S102 - the repository's own source
     return mod
@@ -73,7 +74,7 @@ def main(argv: list[str]) -> int:
         return 2
     rev, reps = argv[0], int(argv[1]) if len(argv) > 1 else 30
     logging.disable(logging.CRITICAL)
-    from tactile_force.edge.gate import ContactGate
+    from tactile_force.edge.gate.contact_gate import ContactGate
 
     from .frames import frame_pool
 

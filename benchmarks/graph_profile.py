@@ -161,7 +161,7 @@ def variants(bundle: Path = DEFAULT_DIR):
 def measure(runs: int = 2000, bundle: Path = DEFAULT_DIR) -> list[list[object]]:
     """[[variant, p50 us, p99 us, p50 / shipped p50, max |force - shipped| N]] timed round-robin."""
     from tactile_force.edge import load_bundle
-    from tactile_force.edge.reduce import reduce_frames
+    from tactile_force.edge.gate.reduce import reduce_frames
 
     from .frames import frame_pool
     from .stats import percentiles

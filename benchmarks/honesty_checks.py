@@ -63,7 +63,7 @@ class _List:
 
 
 def _aurova() -> tuple[list[np.ndarray], list[float]]:
-    from tactile_force.edge.dataset import AuthorsDataset
+    from tactile_force.edge.data.dataset import AuthorsDataset
 
     ds = AuthorsDataset(DATA / "aurova_digit_grasp")
     return [s.frame for s in ds], [float(s.force_n) for s in ds]
@@ -209,7 +209,7 @@ def compressed_on_wedge(tmp: Path) -> tuple[list[str], dict]:
 
 # -- 3 and 4 ---------------------------------------------------------------------------------
 def calibrated_bundle(tmp: Path) -> Path:
-    from tactile_force.edge.calibrate_force import calibrate_bundle
+    from tactile_force.edge.fitting.calibrate import calibrate_bundle
     from tactile_force.edge.scene import default_bundle_path
 
     out = tmp / "calibrated"

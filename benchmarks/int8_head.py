@@ -44,7 +44,7 @@ def _synthetic(n: int = 64) -> np.ndarray:
 
 
 def _latency(path: Path, runs: int) -> tuple[float, float]:
-    from tactile_force.edge.inference import MAX_BATCH, OnnxForceModel
+    from tactile_force.edge.model.onnx_model import MAX_BATCH, OnnxForceModel
 
     m = OnnxForceModel(path, threads=1)
     rgb = np.zeros((MAX_BATCH, 320, 240, 3), np.uint8)

@@ -8,7 +8,7 @@ on fresh virtual DIGIT grasps: seed :data:`CAL_SEED` (used nowhere else: not in 
 not in choosing the model, not in the report, which uses :data:`REPORT_SEED`), indenters
 of the S1 *test* split (the reference models never trained or chose on them). Each
 reading in contact gives one (estimate, true force) pair, each ``no_contact`` reading one
-gate-closed true force; :func:`tactile_force.edge.interval.fit_interval` makes the table.
+gate-closed true force; :func:`tactile_force.edge.bundle.interval.fit_interval` makes the table.
 Neither the model nor its ONNX file changes: only ``model.json`` is rewritten, through the
 typed Manifest and ``write_bundle``. If the ONNX file changes while the grasps run (another
 tool rewrote the bundle), the fit is repeated on the new model.
@@ -106,7 +106,7 @@ def grasp_readings(bundle, seed: int, n_grasps: int, split: str = SPLIT, peak_n:
 def interval_from_readings(g: GraspReadings, coverage: float, model_sha256: str):
     """The conformal table from runtime readings: contact readings' (estimate, truth) pairs,
     saturated ones one-sided; no_contact readings' true forces for the gate-closed bound."""
-    from tactile_force.edge.interval import fit_interval
+    from tactile_force.edge.bundle.interval import fit_interval
 
     c = g.contact()
     return fit_interval(g.force[c], g.truth[c], coverage, data=g.source, model_sha256=model_sha256,
@@ -119,7 +119,7 @@ def fit_bundle(path: Path, seed: int = CAL_SEED, n_grasps: int = CAL_GRASPS, cov
 
     The manifest is re-read right before writing; if the ONNX file's sha256 changed in the
     meantime, the fit is repeated on the new model (up to ``attempts`` times)."""
-    from tactile_force.edge.bundle import load_bundle, write_bundle
+    from tactile_force.edge.bundle.store import load_bundle, write_bundle
 
     for _ in range(attempts):
         b = load_bundle(path)

@@ -102,7 +102,7 @@ def cached_grasp_readings(bundle, seed: int, n_grasps: int, split: str) -> Grasp
 
 
 def synthetic_section(n_grasps: int, bundle_path: Path = MODELS / "default", split: str = "S1") -> tuple[str, dict]:
-    from tactile_force.edge.bundle import load_bundle
+    from tactile_force.edge.bundle.store import load_bundle
 
     b = load_bundle(bundle_path)
     iv = b.manifest.interval
@@ -146,9 +146,9 @@ def synthetic_section(n_grasps: int, bundle_path: Path = MODELS / "default", spl
 
 
 def real_section() -> tuple[str, dict]:
-    from tactile_force.edge.bundle import load_bundle
-    from tactile_force.edge.calibrate_force import calibrate_bundle, raw_estimates, read_labelled
-    from tactile_force.edge.inference import OnnxForceModel
+    from tactile_force.edge.bundle.store import load_bundle
+    from tactile_force.edge.fitting.calibrate import calibrate_bundle, raw_estimates, read_labelled
+    from tactile_force.edge.model.onnx_model import OnnxForceModel
     from tactile_force.edge.reading import MAX_VALID_FORCE_N
 
     fit_dir, held_dir = SHARED / "aurova_digit_grasp", SHARED / "aurova_digit_grasp_heldout"
@@ -199,9 +199,9 @@ def real_section() -> tuple[str, dict]:
 
 
 def cost_section(repeats: int = 7, calls: int = 200_000) -> tuple[str, dict]:
-    from tactile_force.edge.interval import fit_interval
+    from tactile_force.edge.bundle.interval import fit_interval
     from tactile_force.edge.reading import Flags, ForceReading
-    from tactile_force.edge.runtime import ForceRuntime
+    from tactile_force.edge.runtime.loop import ForceRuntime
 
     rng = np.random.default_rng(0)
     y = rng.uniform(0.5, 18.0, 4000)
@@ -268,7 +268,7 @@ def intervals_page(args, argv) -> str:
     notes = (f"Every reading carries `force_low_n` / `force_high_n` / `interval` (docs/runtime.md). {GOALS} The "
              f"shipped interval is fitted on {CAL_GRASPS} grasps of a calibration seed "
              "(`python -m benchmarks.interval_fit`); the report seed is used for nothing else. Method: split "
-             "conformal prediction, Mondrian by estimate bin (edge/interval.py, `ForceInterval` Notes). Design "
+             "conformal prediction, Mondrian by estimate bin (edge/bundle/interval.py, `ForceInterval` Notes). Design "
              "choice made while looking at data: the score's 5 N floor (absolute half-width below 5 N, relative "
              "above) was picked from the AUROVA fit set's leave-one-out residuals, and the held-out frames' "
              "residuals had been printed during development too: the real-frame table is not a blind test.")

@@ -221,8 +221,8 @@ class BareOnnxRuntime:
     def __init__(self, case: LatencyCase, pool: FramePool, bundle: Path | None = None) -> None:
         import onnxruntime as ort
         from tactile_force.edge import load_bundle
-        from tactile_force.edge.manifest import InputKind, Reduction
-        from tactile_force.edge.reduce import reduce_frames
+        from tactile_force.edge.bundle.manifest import InputKind, Reduction
+        from tactile_force.edge.gate.reduce import reduce_frames
 
         bundle = load_bundle(bundle or case.bundle or latency_bundle(case.config, case.precision))
         so = ort.SessionOptions()
@@ -258,7 +258,7 @@ def measure(case: LatencyCase, pool: FramePool | None = None, clock: Clock = tim
     ``depth``: the depth-stage factory for depth variants (default: the virtual DIGIT's
     calibration, :func:`benchmarks.frames.depth_stage`)."""
     from tactile_force.edge import ContactGate
-    from tactile_force.edge.runtime import ForceRuntime, RuntimeOptions, Sensor
+    from tactile_force.edge.runtime.loop import ForceRuntime, RuntimeOptions, Sensor
 
     pool = pool or frame_pool()
     cv2.setNumThreads(case.threads)

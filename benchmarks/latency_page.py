@@ -130,7 +130,7 @@ def two_sensors(bundle: Path, pool, seconds: float) -> tuple[list[list[object]],
     60 fps in contact, unsynchronised (the second half a frame later)."""
     from tactile_force.edge import ContactGate, OnnxForceModel
     from tactile_force.edge.reading import Flags
-    from tactile_force.edge.runtime import ForceRuntime, RuntimeOptions, Sensor
+    from tactile_force.edge.runtime.loop import ForceRuntime, RuntimeOptions, Sensor
 
     n = int(seconds * 60)
     rows = []
@@ -166,7 +166,7 @@ def two_sensors(bundle: Path, pool, seconds: float) -> tuple[list[list[object]],
 
 def demo_late(bundle: Path) -> tuple[list[list[object]], dict]:
     """``tactile-force demo`` (3 grasps, seed 0) headless: readings, late ones, total p50/p99."""
-    from tactile_force.edge.cli_runtime import run_demo
+    from tactile_force.edge.cli.run import run_demo
     from tactile_force.edge.synthetic import VirtualDigitSource
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -269,8 +269,8 @@ def node_profile(bundle: Path, pool, runs: int) -> tuple[list[list[object]], flo
         so.profile_file_prefix = str(Path(tmp) / "ort")
         sess = ort.InferenceSession(str(b.onnx_path), so, providers=["CPUExecutionProvider"])
         name = b.manifest.inputs[0].name
-        from tactile_force.edge.manifest import Reduction
-        from tactile_force.edge.reduce import reduce_frames
+        from tactile_force.edge.bundle.manifest import Reduction
+        from tactile_force.edge.gate.reduce import reduce_frames
 
         red = b.manifest.inputs[0].reduction  # a graph at the network resolution reads reduced frames
         frames = pool.rgb if red.method is Reduction.NONE else reduce_frames(pool.rgb, red)

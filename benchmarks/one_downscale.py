@@ -26,7 +26,7 @@ import cv2
 import numpy as np
 
 if TYPE_CHECKING:
-    from tactile_force.edge.metrics import ErrorStats
+    from tactile_force.edge.data.metrics import ErrorStats
 
 REPO = Path(__file__).resolve().parents[1]
 REFERENCE_GRAPH = REPO / "benchmarks" / "reference_graphs" / "default_c1733e6.onnx"
@@ -34,15 +34,15 @@ DEFAULT_DIR = REPO / "edge" / "models" / "default"
 
 
 def chosen_reduction():
-    """The reduction the default bundle records (edge/reduce.py's default at x4)."""
-    from tactile_force.edge.reduce import default_reduction
+    """The reduction the default bundle records (edge/gate/reduce.py's default at x4)."""
+    from tactile_force.edge.gate.reduce import default_reduction
 
     return default_reduction(4)
 
 
 def reductions():
     """The exact box averages compared for the one downscale: (label, FrameReduction)."""
-    from tactile_force.edge.manifest import FrameReduction, Reduction
+    from tactile_force.edge.bundle.manifest import FrameReduction, Reduction
 
     return [("area x4 (one INTER_AREA, ties to even: the reference graph's own rounding)",
              FrameReduction(Reduction.AREA, 4)),
@@ -53,7 +53,7 @@ def reductions():
 def bundle_errors(model, data) -> ErrorStats:
     """edge.metrics.ErrorStats of an OnnxForceModel on labelled frames (full-resolution frames
     through ``predict``, which reduces them itself)."""
-    from tactile_force.edge.metrics import error_stats
+    from tactile_force.edge.data.metrics import error_stats
 
     from .evaluate import predict_all
 
@@ -93,8 +93,8 @@ def make_default(dest: Path = DEFAULT_DIR) -> Path:
     import tempfile
 
     from tactile_force.edge import OnnxForceModel, load_bundle
-    from tactile_force.edge.bundle import write_bundle
-    from tactile_force.edge.manifest import ErrorFigures
+    from tactile_force.edge.bundle.manifest import ErrorFigures
+    from tactile_force.edge.bundle.store import write_bundle
     from tactile_force.export.network_input import network_input_bundle
 
     from .evaluate import synthetic_test
@@ -122,8 +122,8 @@ def make_default(dest: Path = DEFAULT_DIR) -> Path:
 def reduction_timings(repeats: int = 2000) -> list[list[object]]:
     """[[how, p50 us, p99 us, max |diff| to the exact average (levels), share of pixels differing]]
     for ways of reducing a 320x240x3 frame to 80x60, timed interleaved (one thread)."""
-    from tactile_force.edge.manifest import FrameReduction, Reduction
-    from tactile_force.edge.reduce import FrameReducer
+    from tactile_force.edge.bundle.manifest import FrameReduction, Reduction
+    from tactile_force.edge.gate.reduce import FrameReducer
 
     from .stats import percentiles
 
@@ -197,7 +197,7 @@ def interleaved(frames: int = 2000, warmup: int = 200) -> dict:
     Returns {'after': {stage: samples ms}, 'before': {...}, 'bare': samples ms, 'machine': state}."""
     from tactile_force.edge import ContactGate, OnnxForceModel
     from tactile_force.edge.reading import Flags
-    from tactile_force.edge.runtime import ForceRuntime, RuntimeOptions, Sensor
+    from tactile_force.edge.runtime.loop import ForceRuntime, RuntimeOptions, Sensor
 
     from .frames import frame_pool
     from .graph_profile import bare_session
@@ -278,9 +278,9 @@ def gate_rows(frames: int = 2000, warmup: int = 200) -> list[list[object]]:
     interleaved frame by frame, each frame cold in the cache as a camera's would be.
     """
     from tactile_force.edge import ContactGate, load_bundle
-    from tactile_force.edge import gate_checks as chk
-    from tactile_force.edge.data_stats import DataStatsCheck
+    from tactile_force.edge.bundle.data_stats import DataStatsCheck
     from tactile_force.edge.frames import exposure_problem
+    from tactile_force.edge.gate import checks as chk
 
     from .frames import frame_pool
     from .stats import percentiles
@@ -298,7 +298,7 @@ def gate_rows(frames: int = 2000, warmup: int = 200) -> list[list[object]]:
 
     every = "every frame"
     stages = [
-        ("one downscale (edge/reduce.py, area-2x-steps)", every, lambda f: a.reduce(f)),
+        ("one downscale (edge/gate/reduce.py, area-2x-steps)", every, lambda f: a.reduce(f)),
         ("exposure check (all-dark / all-white / clipped)", every, lambda f: exposure_problem(a._small)),
         ("blur + 20x15 thumbnail", every, lambda f: a._prepare(f)),
         ("photometric fit (gain/offset, two residual passes)", every, lambda f: a._fit_thumb(a._thumb)),

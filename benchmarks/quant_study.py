@@ -26,7 +26,7 @@ STUDY = CACHE / "quant_study"
 
 
 def _errors(model, test, fp32_pred: np.ndarray | None) -> dict:
-    from tactile_force.edge.metrics import error_stats
+    from tactile_force.edge.data.metrics import error_stats
 
     pred = predict_all(model, test)
     st = error_stats(pred, test.force)

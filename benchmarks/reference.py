@@ -113,16 +113,16 @@ def network_resolution(cfg: TrainConfig) -> bool:
 
 def network_reduction(k: int):
     """How a frame is reduced to the network input of the network-resolution configs: the
-    package's default for the factor (edge/reduce.py), recorded in the manifest's inputs and
+    package's default for the factor (edge/gate/reduce.py), recorded in the manifest's inputs and
     depth record."""
-    from tactile_force.edge.reduce import default_reduction
+    from tactile_force.edge.gate.reduce import default_reduction
 
     return default_reduction(k)
 
 
 def reduce_frames(frames: np.ndarray, k: int) -> np.ndarray:
     """(N, 320, 240, C) uint8 -> (N, 320/k, 240/k, C) uint8 with the network reduction."""
-    from tactile_force.edge.reduce import reduce_frames as _reduce
+    from tactile_force.edge.gate.reduce import reduce_frames as _reduce
 
     return _reduce(frames, network_reduction(k))
 
@@ -258,8 +258,8 @@ def virtual_depth_stage(downscale: int = 1):
 
 def virtual_depth_record(downscale: int = 1):
     """The manifest's depth record of the reference depth models (what the runtime rebuilds)."""
-    from tactile_force.edge.bundle import sha256_file
-    from tactile_force.edge.manifest import DepthRecord
+    from tactile_force.edge.bundle.manifest import DepthRecord
+    from tactile_force.edge.bundle.store import sha256_file
 
     return DepthRecord(mapping=f"package:{VIRTUAL_DEPTH_MAPPING.name}", mode="exact",
                        levels_per_px=VIRTUAL_DEPTH_LEVELS_PER_PX, mapping_sha256=sha256_file(VIRTUAL_DEPTH_MAPPING),
@@ -314,7 +314,7 @@ def depth_images(root: Path, rgb: np.ndarray, downscale: int = 1, meta: list[dic
 def train(cfg: TrainConfig, data: Arrays, out_dir: Path) -> dict:
     """Train one config with the package's training loop (tactile_force.export.training);
     returns its record (val/test error, epochs, time)."""
-    from tactile_force.edge.metrics import error_report
+    from tactile_force.edge.data.metrics import error_report
     from tactile_force.export import ModelSpec, save_checkpoint
     from tactile_force.export.training import Frames, TrainOptions, predict, preprocess, train_network
 
@@ -395,7 +395,7 @@ def record_depth_mapping(bundle_dir: Path, downscale: int = 1) -> None:
     """Write into a depth bundle's manifest which depth mapping made its training images and
     on which grid (``downscale``), so a scene without a [depth] table builds the same depth
     stage (idempotent)."""
-    from tactile_force.edge.bundle import load_bundle, write_bundle
+    from tactile_force.edge.bundle.store import load_bundle, write_bundle
 
     b = load_bundle(bundle_dir)
     want = virtual_depth_record(downscale)
@@ -411,7 +411,7 @@ DEFAULT_NOTE = ("Trained on SYNTHETIC frames from the package's virtual DIGIT on
 
 def install_default_bundle(int8_bundle: Path) -> Path:
     """Copy a trained int8 bundle into edge/models/default with the synthetic-data note."""
-    from tactile_force.edge.bundle import load_bundle, write_bundle
+    from tactile_force.edge.bundle.store import load_bundle, write_bundle
 
     src = load_bundle(int8_bundle)
     manifest = src.manifest
@@ -431,7 +431,7 @@ DEPTH_NOTE = ("Trained on SYNTHETIC frames from the package's virtual DIGIT only
 def install_shipped_bundle(folder: str, bundle: Path) -> Path:
     """Copy a trained depth bundle into edge/models/<folder> with the synthetic-data note and
     the default bundle's data statistics (the same training distribution, seen by the gate)."""
-    from tactile_force.edge.bundle import load_bundle, write_bundle
+    from tactile_force.edge.bundle.store import load_bundle, write_bundle
 
     from .trust import default_data_stats
 

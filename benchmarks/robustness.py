@@ -189,7 +189,7 @@ def write_frame_png(path: Path, seed: int = 0, noise: bool = False) -> np.ndarra
 
 def make_dataset(root: Path, n: int = 1, forces: list[float] | None = None) -> Path:
     """An authors'-layout dataset of ``n`` synthetic frames with valid labels."""
-    from tactile_force.edge.dataset import AuthorsDatasetWriter
+    from tactile_force.edge.data.dataset import AuthorsDatasetWriter
 
     with AuthorsDatasetWriter(root) as w:
         for i in range(n):
@@ -256,8 +256,8 @@ class _Count(logging.Handler):
 def probe_label(root: Path, data: bytes, *, calib: bool = True) -> Verdict:
     """One label file through every reader: read_force_file, the dataset reader, the replay
     source (must warn once and yield truth None, never die) and quantize's --calib reader."""
-    from tactile_force.edge.dataset import AuthorsDataset, read_force_file
-    from tactile_force.edge.sources import ReplayFolderSource
+    from tactile_force.edge.data.dataset import AuthorsDataset, read_force_file
+    from tactile_force.edge.sources.files import ReplayFolderSource
 
     want = expected_label(data)
     bad = want is None
@@ -280,7 +280,7 @@ def probe_label(root: Path, data: bytes, *, calib: bool = True) -> Verdict:
         except BaseException as exc:  # noqa: BLE001
             verdicts.append(refusal(exc, bad, names=names))
     # replay: never dies on a bad label; warns once per file; truth None
-    log = logging.getLogger("tactile_force.edge.sources")
+    log = logging.getLogger("tactile_force.edge.sources.files")
     h = _Count()
     log.addHandler(h)
     try:
@@ -357,7 +357,7 @@ def expected_meta(data: bytes) -> int | None:
 
 
 def probe_meta(root: Path, data: bytes) -> Verdict:
-    from tactile_force.edge.dataset import AuthorsDataset
+    from tactile_force.edge.data.dataset import AuthorsDataset
 
     (root / "meta.jsonl").write_bytes(data)
     bad_line = expected_meta(data)
@@ -539,7 +539,7 @@ def probe_manifest(folder: Path, case: tuple[str, Any], *, cli: bool = False) ->
     try:
         bundle = load_bundle(folder)
         if must_refuse:  # the runtime's entry must refuse it when the reader did not
-            from tactile_force.edge.inference import OnnxForceModel
+            from tactile_force.edge.model.onnx_model import OnnxForceModel
 
             OnnxForceModel(bundle, warmup=0)
         v = accepted(True if must_refuse else None, what)
@@ -809,7 +809,7 @@ KILL_AFTER = 3  # complete samples before the kill
 def probe_kill(folder: Path, phase: str) -> Verdict:
     """kill -9 of a recording at ``phase`` of sample KILL_AFTER; then resume: every complete
     sample must still read, the dataset must load, and recording must continue after it."""
-    from tactile_force.edge.dataset import AuthorsDataset
+    from tactile_force.edge.data.dataset import AuthorsDataset
     from tactile_force.firmware_bridge.recorder import RecordOptions, record
 
     out = folder / f"kill_{phase}"
@@ -843,7 +843,7 @@ def probe_kill(folder: Path, phase: str) -> Verdict:
 def probe_truncation(folder: Path, cut: int) -> Verdict:
     """A power cut truncates meta.jsonl ``cut`` bytes into its last line: the reader names the
     file and line until repaired; ``record --repair`` keeps every complete sample."""
-    from tactile_force.edge.dataset import AuthorsDataset
+    from tactile_force.edge.data.dataset import AuthorsDataset
 
     src = folder / "trunc_src"
     if not src.is_dir():
@@ -924,7 +924,7 @@ def small_filesystem(folder: Path, size_kib: int = 1536) -> Iterator[tuple[Path,
         return
     import errno
 
-    from tactile_force.edge import dataset as ds_mod
+    from tactile_force.edge.data import dataset as ds_mod
 
     budget = {"left": size_kib * 1024}
     orig_atomic = ds_mod.AuthorsDatasetWriter._atomic_write
@@ -948,7 +948,7 @@ def small_filesystem(folder: Path, size_kib: int = 1536) -> Iterator[tuple[Path,
 def probe_disk_full(folder: Path) -> tuple[Verdict, str]:
     """Record onto a small filesystem until it is full, through the CLI (DIGIT and HID scale
     faked at the hardware boundary): exit 1, summary printed, every sample written readable."""
-    from tactile_force.edge.dataset import AuthorsDataset
+    from tactile_force.edge.data.dataset import AuthorsDataset
 
     with small_filesystem(folder / "small_fs") as (fs, method):
         out = fs / "ds"
@@ -1008,7 +1008,7 @@ def _record_cli_with_fakes(argv: list[str]) -> tuple[int, str, str]:
 
 def probe_replay_vanish(folder: Path, paced: bool) -> Verdict:
     """A replay folder deleted mid-run: the next read raises SourceError (never idles)."""
-    from tactile_force.edge.sources import ReplayFolderSource
+    from tactile_force.edge.sources.files import ReplayFolderSource
 
     root = folder / f"vanish_{paced}"
     shutil.rmtree(root, ignore_errors=True)
@@ -1198,7 +1198,7 @@ wrong exit code; **silent wrong** bad input accepted or a wrong value returned; 
 answer within 60 s (20 s for a vanished replay); **data lost** a complete sample gone after a
 fault. A case counts once, under the worst thing any reader did with it.
 
-Rules the counts are judged by (docs match code: `edge/labels.py`, `export/checkpoint.py`):
+Rules the counts are judged by (docs match code: `edge/data/labels.py`, `export/checkpoint.py`):
 * a force label is UTF-8 text whose first non-blank line starts with a plain decimal number,
   finite, 0 <= F <= {MAX_FORCE_N:g} N (0 N = no contact; the bound is ten times the paper's
   0-20 N range and 4.5 times the largest real grasp in the shared data, 44.5 N: a larger value

@@ -182,7 +182,7 @@ def inputs_cases(folder: Path) -> list[tuple[str, Callable[[], Verdict]]]:
 
 
 def _probe_write_bundle(folder: Path) -> Verdict:
-    from tactile_force.edge.bundle import load_bundle, write_bundle
+    from tactile_force.edge.bundle.store import load_bundle, write_bundle
 
     mine = folder / "thesis"
     mine.mkdir(exist_ok=True)
@@ -237,7 +237,7 @@ def presses_cases(folder: Path) -> list[tuple[str, Callable[[], Verdict]]]:
         return calib(data, ("the same frame twice",))
 
     def dataset_refusal(name: str, make: Callable[[Path], tuple[str, ...]]) -> Verdict:
-        from tactile_force.edge.dataset import AuthorsDataset
+        from tactile_force.edge.data.dataset import AuthorsDataset
 
         data = presses_folder(folder / name)
         names = make(data)
@@ -294,7 +294,7 @@ def presses_cases(folder: Path) -> list[tuple[str, Callable[[], Verdict]]]:
         return Verdict(Outcome.SILENT_WRONG, f"labels x10 taken without a warning ({v})")
 
     def fifo_label() -> Verdict:
-        from tactile_force.edge.labels import read_force_file
+        from tactile_force.edge.data.labels import read_force_file
 
         p = folder / "fifo_label" / "force_0.txt"
         p.parent.mkdir(parents=True, exist_ok=True)
@@ -370,7 +370,7 @@ def _csv_count(path: Path) -> int:
 def mcap_replay(folder: Path) -> Path:
     """198 frames (noise blocks on a flat gel) in the authors' layout: 10 s at --fps 20."""
     import cv2
-    from tactile_force.edge.dataset import AuthorsDatasetWriter
+    from tactile_force.edge.data.dataset import AuthorsDatasetWriter
 
     root = folder / "mcap_replay"
     rng = np.random.default_rng(3)
@@ -443,8 +443,8 @@ def _d_bundle(dest: Path) -> Path:
     """A real depth (D) bundle whose manifest records no mapping: force = mean(depth) / 51."""
     import onnx
     from onnx import TensorProto, helper
-    from tactile_force.edge.bundle import write_bundle
-    from tactile_force.edge.manifest import InputKind, InputSpec, Manifest, OutputSpec, Provenance
+    from tactile_force.edge.bundle.manifest import InputKind, InputSpec, Manifest, OutputSpec, Provenance
+    from tactile_force.edge.bundle.store import write_bundle
 
     nodes = [helper.make_node("Cast", ["depth"], ["d"], to=TensorProto.FLOAT),
              helper.make_node("ReduceMean", ["d"], ["m"], axes=[1, 2, 3], keepdims=0),

@@ -63,7 +63,7 @@ def digit_backgrounds() -> dict[str, np.ndarray]:
 
 def aurova(heldout: bool = False) -> list[tuple[np.ndarray, float]]:
     """(frame, force N) of the shared AUROVA grasp (or its held-out half), paired by number."""
-    from tactile_force.edge.dataset import AuthorsDataset  # the package's one labelled-data reader
+    from tactile_force.edge.data.dataset import AuthorsDataset  # the package's one labelled-data reader
 
     return [(s.frame, float(s.force_n)) for s in
             AuthorsDataset(DATA / ("aurova_digit_grasp_heldout" if heldout else "aurova_digit_grasp"))]
@@ -214,7 +214,7 @@ def default_data_stats(n: int = 600, seed: int = 0):
     spread 3 %) seen through the gate against the shipped no-contact background. Cached in
     benchmarks/cache/trust_data_stats-nN-seedS.json."""
     from tactile_force.edge import AuthorsDataset
-    from tactile_force.edge.data_stats import DataStats, compute_data_stats
+    from tactile_force.edge.bundle.data_stats import DataStats, compute_data_stats
     from tactile_force.edge.synthetic import DatasetOptions, ForceDistribution, generate_dataset
     from tactile_force.edge.typed_json import from_json, to_json
 
@@ -242,7 +242,7 @@ def default_data_stats(n: int = 600, seed: int = 0):
 
 def attach_data_stats(bundle_dir: Path, stats) -> None:
     """Store ``stats`` as the manifest's data_stats of the bundle folder (rewritten atomically)."""
-    from tactile_force.edge.bundle import load_bundle, write_bundle
+    from tactile_force.edge.bundle.store import load_bundle, write_bundle
 
     b = load_bundle(bundle_dir)
     b.manifest.data_stats = stats
@@ -266,7 +266,7 @@ def load_default_model(stats_n: int):
 # -- suite ------------------------------------------------------------------------------------------
 def run_suite(quick: bool = False) -> tuple[list[Tally], dict]:
     from tactile_force.edge import GateOptions
-    from tactile_force.edge.gate import ContactGate
+    from tactile_force.edge.gate.contact_gate import ContactGate
     from tactile_force.edge.synthetic import VirtualDigitSource, paper_indenter_names
 
     model, stats_note = load_default_model(300 if quick else 600)
@@ -370,7 +370,7 @@ def measure_latency(n: int = 3000) -> list[list]:
     old configuration (x2, blur 5, no judging) for comparison, and the data_stats check;
     variants interleaved in rounds so they share the machine's load."""
     from tactile_force.edge import ContactGate, GateOptions
-    from tactile_force.edge.data_stats import DataStatsCheck
+    from tactile_force.edge.bundle.data_stats import DataStatsCheck
 
     cv2.setNumThreads(1)
     bg = digit_backgrounds()["aurova_background_b"]
@@ -432,7 +432,8 @@ def run(args, argv) -> int:
         print(f"wrote data_stats into {default_bundle_path() / 'model.json'}")
     import logging
 
-    logging.getLogger("tactile_force.edge.gate").setLevel(logging.ERROR)  # one warning per fresh gate otherwise
+    # one warning per fresh gate otherwise
+    logging.getLogger("tactile_force.edge.gate.contact_gate").setLevel(logging.ERROR)
     t0 = time.perf_counter()
     tallies, extra = run_suite(args.quick)
     lat = measure_latency(600 if args.quick else 3000)

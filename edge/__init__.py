@@ -13,7 +13,9 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING, Any
 
-from .bundle import Bundle, load_bundle, read_manifest, sha256_file, write_bundle
+from . import _moved
+from .bundle.manifest import DEPTH_VARIANTS, PRECISIONS, VARIANTS, InputKind, Manifest, Precision, Variant
+from .bundle.store import Bundle, load_bundle, read_manifest, sha256_file, write_bundle
 from .errors import (
     AcceleratorUnavailableError,
     ArgumentTypeError,
@@ -27,14 +29,15 @@ from .errors import (
     TactileForceError,
 )
 from .frames import FRAME_SHAPE, FrameSource, SourceStats, TimedFrame, check_frame
-from .manifest import DEPTH_VARIANTS, PRECISIONS, VARIANTS, InputKind, Manifest, Precision, Variant
 from .reading import MAX_VALID_FORCE_N, MIN_VALID_FORCE_N, Flags, ForceReading, IntervalState, StageLatency
+
+_moved.install()  # the flat module paths of earlier versions (tactile_force.edge.manifest, ...) keep working
 
 #: name -> submodule that defines it (imported on first access)
 _LAZY = {
     # runtime
     "ContactGate": "gate", "GateOptions": "gate", "GateResult": "gate",
-    "OnnxForceModel": "inference", "LadderChoice": "inference", "choose_bundle": "inference",
+    "OnnxForceModel": "model", "LadderChoice": "model.onnx_model", "choose_bundle": "model.onnx_model",
     "CsvWriter": "outputs", "JsonlWriter": "outputs", "StdoutWriter": "outputs",
     "ForceRuntime": "runtime", "RuntimeOptions": "runtime", "RuntimeStats": "runtime", "Sensor": "runtime",
     "plan_stages": "runtime",
@@ -42,12 +45,13 @@ _LAZY = {
     "load_scene": "scene", "shipped_bundles": "scene",
     "CameraSource": "sources", "ReplayFolderSource": "sources", "StreamLost": "sources", "VideoFileSource": "sources",
     "load_background": "sources", "open_v4l2": "sources",
-    "ForceCalibration": "force_calibration", "DataStats": "data_stats",
-    "ForceInterval": "interval", "fit_interval": "interval",
+    "ForceCalibration": "bundle.force_calibration", "DataStats": "bundle.data_stats",
+    "ForceInterval": "bundle.interval", "fit_interval": "bundle.interval",
     # labelled data and metrics
-    "AuthorsDataset": "dataset", "AuthorsDatasetWriter": "dataset", "Sample": "dataset",
-    "ErrorReport": "metrics", "ErrorStats": "metrics", "error_report": "metrics", "error_stats": "metrics",
-    "relative_error": "metrics",
+    "AuthorsDataset": "data.dataset", "AuthorsDatasetWriter": "data.dataset", "Sample": "data.dataset",
+    "ErrorReport": "data.metrics", "ErrorStats": "data.metrics", "error_report": "data.metrics",
+    "error_stats": "data.metrics",
+    "relative_error": "data.metrics",
     # depth stage (D / Dmod / RGBmod+D only)
     "DepthOptions": "depth", "DepthResult": "depth", "DepthStage": "depth", "MaxDeformationBaseline": "depth",
     "NormalLUT": "depth",
@@ -92,18 +96,18 @@ __all__ = [
 ]
 
 if TYPE_CHECKING:  # for type checkers and IDEs; at run time these load lazily
-    from .data_stats import DataStats
-    from .dataset import AuthorsDataset, AuthorsDatasetWriter, Sample
+    from .bundle.data_stats import DataStats
+    from .bundle.force_calibration import ForceCalibration
+    from .bundle.interval import ForceInterval, fit_interval
+    from .data.dataset import AuthorsDataset, AuthorsDatasetWriter, Sample
+    from .data.metrics import ErrorReport, ErrorStats, error_report, error_stats, relative_error
     from .depth import DepthOptions, DepthResult, DepthStage, MaxDeformationBaseline, NormalLUT
-    from .force_calibration import ForceCalibration
-    from .gate import ContactGate, GateOptions, GateResult
-    from .inference import LadderChoice, OnnxForceModel, choose_bundle
-    from .interval import ForceInterval, fit_interval
-    from .metrics import ErrorReport, ErrorStats, error_report, error_stats, relative_error
+    from .gate.contact_gate import ContactGate, GateOptions, GateResult
+    from .model.onnx_model import LadderChoice, OnnxForceModel, choose_bundle
     from .outputs import CsvWriter, JsonlWriter, StdoutWriter
-    from .runtime import ForceRuntime, RuntimeOptions, RuntimeStats, Sensor, plan_stages
+    from .runtime.loop import ForceRuntime, RuntimeOptions, RuntimeStats, Sensor, plan_stages
     from .scene import Scene, build_scene, default_bundle_path, describe_scene, load_scene, shipped_bundles
-    from .sources import CameraSource, ReplayFolderSource, StreamLost, VideoFileSource, load_background, open_v4l2
+    from .sources.files import CameraSource, ReplayFolderSource, StreamLost, VideoFileSource, load_background, open_v4l2
     from .synthetic import (
         ContactSpec,
         DatasetOptions,

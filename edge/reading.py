@@ -72,7 +72,7 @@ class ForceReading:
     force_low_n / force_high_n: the interval (N) that holds the true force with the
     bundle's stated coverage, ``force_low_n <= force_n <= force_high_n``, ``force_low_n >= 0``;
     ``force_high_n`` is +inf when ``interval`` is ``open_above`` (saturated); both NaN when
-    ``interval`` is ``unknown`` (see :class:`IntervalState`, :mod:`tactile_force.edge.interval`).
+    ``interval`` is ``unknown`` (see :class:`IntervalState`, :mod:`tactile_force.edge.bundle.interval`).
     """
 
     sensor: str

@@ -15,12 +15,12 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from tactile_force.edge.dataset import AuthorsDataset
+from tactile_force.edge.bundle.manifest import FrameReduction, Manifest, Reduction
+from tactile_force.edge.data.dataset import AuthorsDataset
 from tactile_force.edge.errors import DatasetError, TactileForceError
 from tactile_force.edge.frames import FRAME_SHAPE
-from tactile_force.edge.manifest import FrameReduction, Manifest, Reduction
-from tactile_force.edge.progress import progress
-from tactile_force.edge.reduce import reduce_frames
+from tactile_force.edge.gate.reduce import reduce_frames
+from tactile_force.edge.report.progress import progress
 
 from .zoo import VARIANT_INPUTS, check_variant
 
@@ -51,7 +51,7 @@ class CalibrationData:
 
     def reduced(self, reduction: FrameReduction) -> CalibrationData:
         """The same frames reduced to the network resolution as the runtime reduces them
-        (edge/reduce.py), for graphs that start there; forces, source and ids unchanged."""
+        (edge/gate/reduce.py), for graphs that start there; forces, source and ids unchanged."""
         if reduction.method is Reduction.NONE:
             return self
         return CalibrationData({k: reduce_frames(v, reduction) for k, v in self.inputs.items()}, self.forces,

@@ -9,7 +9,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from tactile_force.edge.cli_args import float_in, int_at_least, positive_float, positive_int
+from tactile_force.edge.cli.args import float_in, int_at_least, positive_float, positive_int
 
 VARIANT_HELP = ("rgbmod (RGB, multi-level head), d (depth, plain ResNet-18), dmod (depth, multi-level head), "
                 "rgbmod+d (RGB and depth branches)")
@@ -98,7 +98,7 @@ def main_export(args: argparse.Namespace) -> int:
                          fold_preprocess=not args.no_fold_preprocess, background=args.background)
     b = export_bundle(args.checkpoint, args.out, opts)
     _warn_data_stats("export", b)
-    from tactile_force.edge.cli_bundle import describe_manifest
+    from tactile_force.edge.cli.bundle import describe_manifest
 
     print(f"wrote {b.path}  (export took {b.manifest.provenance.export_seconds} s)")
     for line in describe_manifest(b)[1:]:
@@ -164,7 +164,7 @@ def main_quantize(args: argparse.Namespace) -> int:
                            overwrite=args.force, show_progress=True, background=args.background)
     b = quantize_bundle(args.bundle, args.out, opts, calibration=args.calib, eval_data=args.eval)
     _warn_data_stats("quantize", b)
-    from tactile_force.edge.cli_bundle import describe_manifest
+    from tactile_force.edge.cli.bundle import describe_manifest
 
     print(f"wrote {b.path}")
     for line in describe_manifest(b)[1:]:

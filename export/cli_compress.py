@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from tactile_force.edge.cli_args import positive_float, positive_int
+from tactile_force.edge.cli.args import positive_float, positive_int
 from tactile_force.edge.errors import TactileForceError
 
 
@@ -50,7 +50,7 @@ def check_compress_folder(out: Path, force: bool) -> None:
     """Refuse an ``--out`` that is not compress's own: a folder holding other files, or a
     finished result (``compress.json``) without ``--force``. An interrupted run's folder (only
     ``work/``) is resumed."""
-    from tactile_force.edge.output_guard import OutputRefused
+    from tactile_force.edge.files.guard import OutputRefused
 
     if not out.is_dir():
         return
@@ -68,8 +68,8 @@ def check_compress_folder(out: Path, force: bool) -> None:
 
 def students_plot(students: list[dict], budget_ms: float, out: str) -> Path:
     """``<out>/students.png``: each student's error (RE vs the labels when given, else vs the
-    teacher) against its p99, the budget line (:func:`tactile_force.edge.plots.error_vs_latency`)."""
-    from tactile_force.edge.plots import ParetoPoint, error_vs_latency
+    teacher) against its p99, the budget line (:func:`tactile_force.edge.report.plots.error_vs_latency`)."""
+    from tactile_force.edge.report.plots import ParetoPoint, error_vs_latency
 
     labelled = all("vs_labels" in r for r in students)
     key = "vs_labels" if labelled else "vs_teacher"
@@ -80,7 +80,7 @@ def students_plot(students: list[dict], budget_ms: float, out: str) -> Path:
 
 def main(args: argparse.Namespace) -> int:
     from tactile_force.edge.errors import BundleError
-    from tactile_force.edge.output_guard import OutputKind, check_output
+    from tactile_force.edge.files.guard import OutputKind, check_output
 
     from .checkpoint import CheckpointError
     from .compress import (

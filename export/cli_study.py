@@ -12,7 +12,7 @@ import shlex
 import sys
 from pathlib import Path
 
-from tactile_force.edge.cli_args import non_negative_int, positive_float, positive_int
+from tactile_force.edge.cli.args import non_negative_int, positive_float, positive_int
 
 
 def configure(p: argparse.ArgumentParser) -> None:
@@ -59,8 +59,8 @@ def main(args: argparse.Namespace) -> int:
                              "forces/force_N.txt)")
     if args.background is not None and not args.background.is_file():
         raise StudyError(f"--background {args.background}: not found (expected a no-contact image)")
-    from tactile_force.edge.atomic import staged_folder
-    from tactile_force.edge.output_guard import OutputKind, check_output
+    from tactile_force.edge.files.atomic import staged_folder
+    from tactile_force.edge.files.guard import OutputKind, check_output
 
     # --out is study's own result folder: never an input, replaced only with --force and only
     # when it is an earlier study result holding nothing else
@@ -74,7 +74,7 @@ def main(args: argparse.Namespace) -> int:
                      max_configs=args.max_configs, sensitivity_nodes=args.sensitivity_nodes,
                      max_calibration_frames=args.calib_frames, keep_bundles="all" if args.keep_all else "pareto")
     from tactile_force.benchmarks.stats import MIN_P99_READINGS
-    from tactile_force.edge.logs import quiet_loggers
+    from tactile_force.edge.report.logs import quiet_loggers
 
     if args.frames < MIN_P99_READINGS:
         print(f"study: --frames {args.frames} is below the {MIN_P99_READINGS} readings a p99 needs: the figures are "
@@ -82,7 +82,7 @@ def main(args: argparse.Namespace) -> int:
     with staged_folder(args.out, "study") as tmp:
         fp32 = prepare_source(args.source, tmp / "bundles", args.variant, args.width, args.input_scale,
                               parity_data=args.data)
-        with quiet_loggers("tactile_force.edge.data_stats", "tactile_force.edge.gate", "tactile_force.edge.runtime"):
+        with quiet_loggers("tactile_force.edge.bundle", "tactile_force.edge.gate", "tactile_force.edge.runtime"):
             report = run_study(fp32, args.data, tmp, o, calibration=args.calib, background=args.background,
                                command=command.strip(), log=lambda s: print(s, file=sys.stderr), publish_as=args.out)
     head, rows = table(report)

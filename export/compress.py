@@ -43,14 +43,14 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from tactile_force.edge.bundle import Bundle, load_bundle, write_bundle
-from tactile_force.edge.data_stats import DataStats, frames_data_stats
-from tactile_force.edge.dataset import AuthorsDataset, read_image
+from tactile_force.edge.bundle.data_stats import DataStats, frames_data_stats
+from tactile_force.edge.bundle.interval import fit_interval
+from tactile_force.edge.bundle.manifest import ErrorFigures, ErrorReport
+from tactile_force.edge.bundle.store import Bundle, load_bundle, write_bundle
+from tactile_force.edge.data.dataset import AuthorsDataset, read_image
+from tactile_force.edge.data.metrics import error_stats
 from tactile_force.edge.errors import DatasetError, TactileForceError
 from tactile_force.edge.frames import FRAME_SHAPE
-from tactile_force.edge.interval import fit_interval
-from tactile_force.edge.manifest import ErrorFigures, ErrorReport
-from tactile_force.edge.metrics import error_stats
 
 from .calibration import CalibrationData
 from .checkpoint import model_from_checkpoint, save_checkpoint
@@ -453,7 +453,7 @@ def time_students(records: list[dict], runs: int, blocks: int) -> None:
     """Set each record's ``p99_ms`` to the median of ``blocks`` block p99s (ms) of a batch-2
     predict (``runs`` calls a block, one thread), the blocks taken round-robin over the
     students so that machine noise falls on all of them alike; ``p99_blocks_ms`` keeps them."""
-    from tactile_force.edge.inference import OnnxForceModel, measure_p99_ms
+    from tactile_force.edge.model.onnx_model import OnnxForceModel, measure_p99_ms
 
     models = [OnnxForceModel(r["bundle"], threads=1) for r in records]
     try:
@@ -483,7 +483,7 @@ def _write_final(dest: Path, chosen: dict, teacher: Teacher, frames_desc: str, n
         frames=vl["n"] if vl else vt["n"],
         vs_truth=ErrorFigures(**vl) if vl else None,
         vs_teacher=ErrorFigures(**vt))
-    # every reading's error bar: split conformal on the held-out labelled frames (edge/interval.py);
+    # every reading's error bar: split conformal on the held-out labelled frames (edge/bundle/interval.py);
     # without labels none (an interval against the teacher would not bound the true force)
     pred, truth = chosen.get("labels_pred_n"), chosen.get("labels_truth_n")
     m.interval = (fit_interval(pred, truth, model_sha256=src.manifest.sha256,

@@ -21,10 +21,10 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-from tactile_force.edge.bundle import Bundle, load_bundle, write_bundle
+from tactile_force.edge.bundle.manifest import FrameReduction, InputSpec, Reduction
+from tactile_force.edge.bundle.store import Bundle, load_bundle, write_bundle
 from tactile_force.edge.errors import TactileForceError
 from tactile_force.edge.frames import FRAME_COLS, FRAME_ROWS
-from tactile_force.edge.manifest import FrameReduction, InputSpec, Reduction
 
 from .graph import _onnx, op_counts
 
@@ -164,7 +164,7 @@ def network_input_bundle(src: Bundle | str | os.PathLike, dest: str | os.PathLik
                         reduction=FrameReduction(reduction.method, reduction.factor)) for s in m.inputs]
     kept = [st for st in m.preprocessing if "folded into conv1" in st]
     pre = [f"frame {FRAME_ROWS}x{FRAME_COLS} -> {rows}x{cols} outside the graph, once per frame: "
-           f"{reduction.method.value} x{reduction.factor} (edge/reduce.py)", *steps, *kept]
+           f"{reduction.method.value} x{reduction.factor} (edge/gate/reduce.py)", *steps, *kept]
     onnx = _onnx()
     manifest = replace(m, inputs=inputs, preprocessing=pre, sha256="")
     if manifest.quantization is not None:

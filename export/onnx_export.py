@@ -3,7 +3,7 @@
 The graph takes uint8 NHWC images at the network resolution with a dynamic batch (``rgb``:
 N x 320/k x 240/k x 3 BGR, ``depth``: N x 320/k x 240/k x 1; k = 1 / input_scale; full
 frames for k = 1) and returns ``force_n`` (N,) float32 in newtons. A compact model's frames
-are reduced outside the graph, once per frame, by the runtime (edge/reduce.py; the manifest
+are reduced outside the graph, once per frame, by the runtime (edge/gate/reduce.py; the manifest
 records the reduction in ``inputs[].reduction``), exactly as the training reduced them.
 The purely linear head is folded into one Gemm, and (by default) the BGR flip and the 1/255
 into conv1's weights, leaving Transpose (uint8) -> Cast in front of conv1.
@@ -24,10 +24,8 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from tactile_force.edge.bundle import Bundle, write_bundle
-from tactile_force.edge.errors import CheckFailedError, TactileForceError
-from tactile_force.edge.interval import fit_interval
-from tactile_force.edge.manifest import (
+from tactile_force.edge.bundle.interval import fit_interval
+from tactile_force.edge.bundle.manifest import (
     Architecture,
     FrameReduction,
     InputKind,
@@ -39,6 +37,8 @@ from tactile_force.edge.manifest import (
     Provenance,
     Variant,
 )
+from tactile_force.edge.bundle.store import Bundle, write_bundle
+from tactile_force.edge.errors import CheckFailedError, TactileForceError
 from torch import nn
 
 from .calibration import CalibrationData, random_frames
@@ -200,7 +200,7 @@ def check_parity(net: ForceNet, model_bytes: bytes, data: CalibrationData, tol_n
 
 
 def _input_specs(variant: str, input_scale: float = 1.0) -> list[InputSpec]:
-    """The network input records: the frame reduced by 1/input_scale (edge/reduce.py's
+    """The network input records: the frame reduced by 1/input_scale (edge/gate/reduce.py's
     default reduction; ``none`` at full resolution)."""
     specs = []
     k = scale_factor(input_scale)
@@ -224,7 +224,7 @@ def preprocessing_steps(spec: ModelSpec, folded: bool = False) -> list[str]:
         r, c = network_hw(spec.input_scale)
         red = default_reduction(k)
         outside.append(f"frame 320x240 -> {r}x{c} outside the graph, once per frame: {red.method.value} x{k} "
-                       "(edge/reduce.py)")
+                       "(edge/gate/reduce.py)")
     if folded:
         steps = [*outside, "NHWC -> NCHW (uint8)", "cast uint8 -> float32"]
         if "rgb" in VARIANT_INPUTS[spec.variant]:
@@ -259,7 +259,7 @@ def _resolve(source, options: ExportOptions) -> tuple[nn.Module, ModelSpec, dict
 def _data_stats_fields(data: CalibrationData | None, background: object) -> dict:
     """Manifest ``data_stats`` of the parity frames the export saw (RGB variants), else
     ``data_stats_missing``: why there are none (the runtime's honesty checks are off)."""
-    from tactile_force.edge.data_stats import frames_data_stats, no_frames_warning
+    from tactile_force.edge.bundle.data_stats import frames_data_stats, no_frames_warning
 
     if data is not None and "rgb" in data.inputs and len(data.inputs["rgb"]):
         return {"data_stats": frames_data_stats(list(data.inputs["rgb"]), background, data.source, "export")}
@@ -274,7 +274,7 @@ def export_bundle(source: str | os.PathLike | nn.Module, dest: str | os.PathLike
     """Export a checkpoint file (or in-memory model / ForceNet) to a verified fp32 bundle at ``dest``."""
     options = options or ExportOptions()
     t0 = time.perf_counter()
-    from tactile_force.edge.output_guard import OutputKind, check_output
+    from tactile_force.edge.files.guard import OutputKind, check_output
 
     inputs = [("checkpoint", source if isinstance(source, (str, os.PathLike)) else None),
               ("--parity-data", options.parity_data if isinstance(options.parity_data, (str, os.PathLike)) else None)]
@@ -321,7 +321,7 @@ def export_bundle(source: str | os.PathLike | nn.Module, dest: str | os.PathLike
                               export_seconds=round(time.perf_counter() - t0, 2)),
     )
     if data.forces is not None and parity.estimates is not None:
-        # labelled parity frames: every reading's error bar, split conformal (edge/interval.py); they
+        # labelled parity frames: every reading's error bar, split conformal (edge/bundle/interval.py); they
         # must be frames the checkpoint never trained on for the stated coverage to hold
         manifest.interval = fit_interval(parity.estimates, data.forces, model_sha256=hashlib.sha256(onnx_bytes)
                                          .hexdigest(), data=f"{data.source} ({len(data)} labelled parity frames)")

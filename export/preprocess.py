@@ -7,9 +7,9 @@ what it saw in training:
     depth (N, 320, 240, 1) uint8      -> (N, 1, 320/k, 240/k) float32 in [0, 1]
 
 Steps: for ``input_scale = 1/k`` the frame's reduction to the network resolution, exactly the
-runtime's (:func:`tactile_force.edge.reduce.default_reduction`: successive 2 x 2 box averages
+runtime's (:func:`tactile_force.edge.gate.reduce.default_reduction`: successive 2 x 2 box averages
 each rounded half up for a power-of-two k, else a k x k box average rounded half to even;
-the result is the same uint8 image edge/reduce.py makes), then NHWC -> NCHW, cast to float,
+the result is the same uint8 image edge/gate/reduce.py makes), then NHWC -> NCHW, cast to float,
 BGR -> RGB (rgb only), / 255.
 
 Exported graphs of compact models start at the network resolution (``network_input=True``):
@@ -27,10 +27,10 @@ from __future__ import annotations
 import copy
 
 import torch
+from tactile_force.edge.bundle.manifest import FrameReduction, Reduction
 from tactile_force.edge.errors import TactileForceError
 from tactile_force.edge.frames import FRAME_SHAPE
-from tactile_force.edge.manifest import FrameReduction, Reduction
-from tactile_force.edge.reduce import default_reduction
+from tactile_force.edge.gate.reduce import default_reduction
 from torch import nn
 
 from .zoo import INPUT_CHANNELS, VARIANT_INPUTS, ModelSpec, RGBmodD, check_variant, fold_linear_head
@@ -54,7 +54,7 @@ def network_hw(input_scale: float) -> tuple[int, int]:
 
 
 def reduce_nchw(x: torch.Tensor, reduction: FrameReduction) -> torch.Tensor:
-    """The runtime's frame reduction (edge/reduce.py) on a float NCHW batch of uint8 values,
+    """The runtime's frame reduction (edge/gate/reduce.py) on a float NCHW batch of uint8 values,
     bit for bit: ``area-2x-steps``: floor(2x2 mean + 1/2) per step; ``area``: the k x k mean
     rounded half to even (torch.round). Exact in float32 (sums of at most 64 x 255)."""
     k = reduction.factor
@@ -145,7 +145,7 @@ class ForceNet(nn.Module):
     only) runs a copy of ``model`` with the BGR flip and 1/255 folded into conv1 (see
     :func:`fold_input_scaling`); ``model`` itself is left as it is. ``network_input=True``
     (export of a compact model): the inputs are frames already reduced to the network
-    resolution (:func:`tactile_force.edge.reduce.default_reduction`), as the runtime feeds them.
+    resolution (:func:`tactile_force.edge.gate.reduce.default_reduction`), as the runtime feeds them.
     """
 
     def __init__(self, model: nn.Module, spec: ModelSpec, folded: bool = False, fold_preprocess: bool = False,

@@ -28,12 +28,19 @@ from pathlib import Path
 
 import numpy as np
 from onnxruntime.quantization import CalibrationDataReader
-from tactile_force.edge.bundle import Bundle, load_bundle, write_bundle
+from tactile_force.edge.bundle.interval import fit_interval
+from tactile_force.edge.bundle.manifest import (
+    DiffFigures,
+    ErrorFigures,
+    ErrorReport,
+    Precision,
+    Quantization,
+    SourceRef,
+)
+from tactile_force.edge.bundle.store import Bundle, load_bundle, write_bundle
+from tactile_force.edge.data.metrics import error_stats
 from tactile_force.edge.errors import TactileForceError, require
-from tactile_force.edge.interval import fit_interval
-from tactile_force.edge.manifest import DiffFigures, ErrorFigures, ErrorReport, Precision, Quantization, SourceRef
-from tactile_force.edge.metrics import error_stats
-from tactile_force.edge.progress import progress
+from tactile_force.edge.report.progress import progress
 from tactile_force.edge.typed_json import from_json
 
 from .calibration import CalibrationData, CalibrationError
@@ -253,7 +260,7 @@ def quantize_bundle(src: Bundle | str | os.PathLike, dest: str | os.PathLike, op
     _check_options(o)
     onnx = require("onnx", "export", "Quantization")
     t0 = time.perf_counter()
-    from tactile_force.edge.output_guard import OutputKind, check_output
+    from tactile_force.edge.files.guard import OutputKind, check_output
 
     src_path = src.path if isinstance(src, Bundle) else src
     inputs = [(flag, p if isinstance(p, (str, os.PathLike)) else None)
@@ -322,7 +329,7 @@ def quantize_bundle(src: Bundle | str | os.PathLike, dest: str | os.PathLike, op
     if rgb_calib and o.background is None and m.data_stats is None:
         manifest.data_stats = calibration_data_stats(calib, None)  # type: ignore[arg-type]
     elif not rgb_calib and m.data_stats is None:
-        from tactile_force.edge.data_stats import no_frames_warning
+        from tactile_force.edge.bundle.data_stats import no_frames_warning
 
         manifest.data_stats_missing = no_frames_warning(
             "quantize", "RGB calibration frames (and the source bundle has no data_stats)")
@@ -330,7 +337,7 @@ def quantize_bundle(src: Bundle | str | os.PathLike, dest: str | os.PathLike, op
     estimates: list = []
     manifest.error = (_error_report(fp32_bytes, q_bytes, evaluation.for_manifest(m), same, estimates)
                       if evaluation is not None else None)
-    # Every reading's error bar (edge/interval.py): split conformal on the labelled frames the
+    # Every reading's error bar (edge/bundle/interval.py): split conformal on the labelled frames the
     # error is scored on; without labels none (the source's interval described another graph).
     manifest.interval = None
     if evaluation is not None and evaluation.forces is not None:
@@ -348,7 +355,7 @@ def quantize_bundle(src: Bundle | str | os.PathLike, dest: str | os.PathLike, op
 def calibration_data_stats(data: CalibrationData, background: object):
     """Manifest ``data_stats`` of calibration frames seen against a no-contact ``background``
     (None: their colours only, with a warning that the contact-size check is off)."""
-    from tactile_force.edge.data_stats import compute_data_stats, frames_data_stats
+    from tactile_force.edge.bundle.data_stats import compute_data_stats, frames_data_stats
     from tactile_force.edge.frames import check_frame
 
     if background is None:

@@ -220,7 +220,7 @@ def grid(first_conv: str | None, quick: bool = False) -> list[tuple[str, Setting
 def _errors(readings: list, fp32_by_frame: dict[int, float] | None, data: Path, background: Path | None
             ) -> ConfigError | None:
     from tactile_force.benchmarks.bench import replay_error
-    from tactile_force.edge.cli_runtime import cnn_readings
+    from tactile_force.edge.cli.run import cnn_readings
 
     e = replay_error(Path("."), data, background, readings=readings)
     if e is None:
@@ -236,7 +236,7 @@ def _errors(readings: list, fp32_by_frame: dict[int, float] | None, data: Path, 
 
 
 def _by_frame(readings: list) -> dict[int, float]:
-    from tactile_force.edge.cli_runtime import cnn_readings
+    from tactile_force.edge.cli.run import cnn_readings
 
     return {r.frame_index: float(r.force_n) for r in cnn_readings(readings)}
 
@@ -252,7 +252,7 @@ def _latency(path: Path, pool, o: StudyOptions) -> Latency:
 
 def _predict(path: Path, calib) -> np.ndarray:
     """The bundle's forces (N) on loaded frames (direct, for the sensitivity ranking)."""
-    from tactile_force.edge.inference import OnnxForceModel
+    from tactile_force.edge.model.onnx_model import OnnxForceModel
 
     model = OnnxForceModel(path, threads=1)
     try:
@@ -269,7 +269,7 @@ def prepare_source(source: Path, work: Path, variant: str | None = None, width: 
                    input_scale: float | None = None, parity_data: Path | None = None) -> Path:
     """The fp32 bundle to study: ``source`` itself when it is a bundle folder (must be fp32),
     else the checkpoint exported (verified) into ``work/fp32``."""
-    from tactile_force.edge.bundle import load_bundle
+    from tactile_force.edge.bundle.store import load_bundle
 
     if source.is_dir():
         if not (source / "model.json").is_file():
@@ -325,9 +325,9 @@ def run_study(fp32: Path, data: Path, out: Path, options: StudyOptions | None = 
     """
     from tactile_force.benchmarks.bench import contact_frames, replay_readings
     from tactile_force.benchmarks.machine import describe_machine
-    from tactile_force.edge.bundle import load_bundle
-    from tactile_force.edge.plots import ParetoPoint, pareto_front
-    from tactile_force.edge.progress import progress
+    from tactile_force.edge.bundle.store import load_bundle
+    from tactile_force.edge.report.plots import ParetoPoint, pareto_front
+    from tactile_force.edge.report.progress import progress
 
     from .calibration import CalibrationData
     from .quantize import QuantizeOptions, quantize_bundle
@@ -550,7 +550,7 @@ def markdown(report: StudyReport, title: str = "Quantization study") -> str:
 def write_study(report: StudyReport, out: Path) -> list[Path]:
     """Write study.json, study.md and pareto.png into ``out``."""
     from tactile_force.benchmarks.bench import write_json
-    from tactile_force.edge.plots import ParetoPoint, error_vs_latency
+    from tactile_force.edge.report.plots import ParetoPoint, error_vs_latency
 
     out.mkdir(parents=True, exist_ok=True)
     js = write_json(out / STUDY_JSON, report.to_json())

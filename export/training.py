@@ -22,8 +22,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import torch
+from tactile_force.edge.data.metrics import error_stats
 from tactile_force.edge.errors import OptionsError
-from tactile_force.edge.metrics import error_stats
 from torch import nn
 
 from .preprocess import ForceNet

@@ -14,8 +14,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import torch
+from tactile_force.edge.bundle.manifest import VARIANTS
 from tactile_force.edge.errors import TactileForceError
-from tactile_force.edge.manifest import VARIANTS
 from torch import nn
 
 #: Network inputs of each variant, in forward() order; 'rgb' has 3 channels, 'depth' 1.

@@ -7,8 +7,9 @@ import json
 import sys
 from pathlib import Path
 
-from ..edge.cli_args import finite_float
-from ..edge.errors import SourceError
+from tactile_force.edge.cli.args import finite_float
+from tactile_force.edge.errors import SourceError
+
 from .discovery import UDEV_INSTALL_HINT, discover, udev_rules_path
 
 
@@ -103,8 +104,9 @@ def _scale_options(text: str):
 
 def main_repair(root: Path) -> int:
     """``record --repair DIR``: repair, then check every label and meta line; 0 when the folder reads."""
-    from ..edge.dataset import AuthorsDataset
-    from ..edge.errors import DatasetError
+    from tactile_force.edge.data.dataset import AuthorsDataset
+    from tactile_force.edge.errors import DatasetError
+
     from .recorder import repair_dataset
 
     if not (root / "images").is_dir():

@@ -16,7 +16,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..edge.errors import SourceError, require
+from tactile_force.edge.errors import SourceError, require
+
 from .sysfs import UsbDeviceInfo, scan_sysfs, scan_udev
 from .usb_ids import DIGIT_RGB_INTENSITY_MIN_REVISION, HIGH_SPEED_MBPS, DeviceKind, bcd_to_revision, classify_ids
 

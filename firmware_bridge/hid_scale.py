@@ -19,7 +19,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Protocol
 
-from ..edge.errors import SourceError, TactileForceError, require
+from tactile_force.edge.errors import SourceError, TactileForceError, require
 
 #: Standard gravity, m/s^2 (force in N = mass in kg * G).
 G = 9.80665

@@ -18,8 +18,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from ..edge.errors import SourceError, require
-from ..edge.frames import FrameSource, TimedFrame
+from tactile_force.edge.errors import SourceError, require
+from tactile_force.edge.frames import FrameSource, TimedFrame
+
 from .discovery import AttachedDevice, classify
 from .sysfs import scan_udev, udev_usb_info, udev_video_nodes
 from .usb_ids import DeviceKind, classify_ids

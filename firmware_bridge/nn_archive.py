@@ -16,8 +16,8 @@ import tarfile
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..edge.bundle import Bundle, load_bundle
-from ..edge.errors import BundleError
+from tactile_force.edge.bundle.store import Bundle, load_bundle
+from tactile_force.edge.errors import BundleError
 
 #: compiled-model suffix -> RVC platform.
 COMPILED_SUFFIXES = {".blob": "RVC2", ".superblob": "RVC2", ".dlc": "RVC4"}

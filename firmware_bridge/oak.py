@@ -20,11 +20,16 @@ from datetime import timedelta
 from pathlib import Path
 
 import numpy as np
-
-from ..edge.bundle import Bundle, load_bundle
-from ..edge.errors import AcceleratorUnavailableError, FrameError, MissingExtraError, ModelClosedError, require
-from ..edge.frames import FRAME_SHAPE, check_batch
-from ..edge.reduce import FrameReducer
+from tactile_force.edge.bundle.store import Bundle, load_bundle
+from tactile_force.edge.errors import (
+    AcceleratorUnavailableError,
+    FrameError,
+    MissingExtraError,
+    ModelClosedError,
+    require,
+)
+from tactile_force.edge.frames import FRAME_SHAPE, check_batch
+from tactile_force.edge.gate.reduce import FrameReducer
 
 
 @dataclass
@@ -69,7 +74,7 @@ class OakForceModel:
                 "runs single-input graphs (rgbmod, d, dmod): use the CPU backend")
         self._spec = m.inputs[0]
         # A graph at the network resolution (manifest inputs[].reduction): frames are reduced
-        # here, once, as OnnxForceModel.predict reduces them (edge/reduce.py).
+        # here, once, as OnnxForceModel.predict reduces them (edge/gate/reduce.py).
         self._reducer = (FrameReducer(self._spec.reduction, (*FRAME_SHAPE[:2], self._spec.channels))
                          if self._spec.reduction.factor > 1 else None)
         archive = Path(options.archive)

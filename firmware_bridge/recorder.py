@@ -1,6 +1,6 @@
 """Record tactile frames labelled with a reference scale's force, in the authors' layout.
 
-Each sample is written by :class:`~tactile_force.edge.dataset.AuthorsDatasetWriter`, file
+Each sample is written by :class:`~tactile_force.edge.data.dataset.AuthorsDatasetWriter`, file
 by file atomically with the force file last, so a crash or unplug loses at most the frame
 in flight. Ctrl-C / SIGTERM finish the sample in flight and stop cleanly.
 
@@ -26,10 +26,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
 
-from ..edge.dataset import AuthorsDatasetWriter
-from ..edge.errors import DatasetError, SourceError
-from ..edge.frames import FrameSource, check_frame
-from ..edge.labels import LabelError, check_force, complete_meta_prefix
+from tactile_force.edge.data.dataset import AuthorsDatasetWriter
+from tactile_force.edge.data.labels import LabelError, check_force, complete_meta_prefix
+from tactile_force.edge.errors import DatasetError, SourceError
+from tactile_force.edge.frames import FrameSource, check_frame
+
 from .hid_scale import ScaleReading
 
 log = logging.getLogger(__name__)
@@ -109,7 +110,7 @@ def repair_dataset(root: str | os.PathLike) -> RepairReport:
     """Make a recording folder consistent after a crash, keeping every complete sample.
 
     Removes temp files and frames without a label, and truncates ``meta.jsonl`` after its
-    last complete line of a labelled sample (see :func:`~tactile_force.edge.labels.complete_meta_prefix`).
+    last complete line of a labelled sample (see :func:`~tactile_force.edge.data.labels.complete_meta_prefix`).
     Needs no free disk space. DatasetError naming the folder when it cannot be changed.
     """
     root = Path(root)

@@ -19,7 +19,7 @@ and the exact DST-I solve run on the frame reduced to the network's input, 320/k
     res.depth                                      # 80x60x1 uint8
 
 A full-resolution frame or mask is reduced first (the frame with the bundle's recorded
-reduction, edge/reduce.py, the runtime's one implementation; the mask by "any pixel of the
+reduction, edge/gate/reduce.py, the runtime's one implementation; the mask by "any pixel of the
 k x k block"), so both give the same depth when the frame was reduced the same way. Heights
 stay in full-resolution pixels (see :class:`DepthOptions`, Notes), so ``levels_per_px`` means
 the same at every ``downscale``.
@@ -47,11 +47,11 @@ MODES = ("exact", "paper")
 
 
 def frame_reducer(downscale: int, reduction: str = ""):
-    """The :class:`~tactile_force.edge.reduce.FrameReducer` of full-resolution 320x240x3 frames
-    to the depth grid: ``reduction`` a :class:`~tactile_force.edge.manifest.Reduction` value
-    ('' = the package's default for that factor, :func:`~tactile_force.edge.reduce.default_reduction`)."""
-    from ..manifest import FrameReduction, Reduction
-    from ..reduce import FrameReducer, default_reduction
+    """The :class:`~tactile_force.edge.gate.reduce.FrameReducer` of full-resolution 320x240x3 frames
+    to the depth grid: ``reduction`` a :class:`~tactile_force.edge.bundle.manifest.Reduction` value
+    ('' = the package's default for that factor, :func:`~tactile_force.edge.gate.reduce.default_reduction`)."""
+    from ..bundle.manifest import FrameReduction, Reduction
+    from ..gate.reduce import FrameReducer, default_reduction
 
     red = FrameReduction(Reduction(reduction), downscale) if reduction else default_reduction(downscale)
     red.check()
@@ -78,7 +78,7 @@ class DepthOptions:
     downscale: the depth grid is the frame reduced by this integer factor k (1: the full
     320 x 240 frame, paper mode and the authors' checkpoints; 4: 80 x 60, the compact
     bundles' network input); reduction: how a full-resolution frame handed to the stage is
-    reduced to that grid, a :class:`~tactile_force.edge.manifest.Reduction` value ('area',
+    reduced to that grid, a :class:`~tactile_force.edge.bundle.manifest.Reduction` value ('area',
     'area-2x-steps'; '' = the package default for the factor; a bundle's depth record names it).
 
     Notes

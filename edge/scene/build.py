@@ -10,14 +10,14 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import AcceleratorUnavailableError, SceneError, SourceError
-from ..gate import ContactGate, GateOptions
+from ..gate.contact_gate import ContactGate, GateOptions
 from .kinds import open_source
 from .model import Clock, Scene
 
 
 def load_model(scene: Scene) -> tuple[Any, str, list[str]]:
     """(model, backend actually used, notes) for the scene's bundle(s) and backend."""
-    from ..inference import OnnxForceModel, choose_bundle
+    from ..model.onnx_model import OnnxForceModel, choose_bundle
 
     notes: list[str] = []
     if scene.backend == "oak":
@@ -148,8 +148,8 @@ def build_scene(scene: Scene, clock: Clock | None = None, warn: Callable[[str], 
     (default: added to the notes of the result, see :class:`LearningWatch`)."""
     import time
 
-    from ..runtime import ForceRuntime, RuntimeOptions, Sensor, build_depth_stage
-    from ..sources import load_background
+    from ..runtime.loop import ForceRuntime, RuntimeOptions, Sensor, build_depth_stage
+    from ..sources.files import load_background
 
     clock = clock or time.monotonic_ns
     notes: list[str] = []

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import BundleError, SceneError
-from ..gate import GateOptions
+from ..gate.contact_gate import GateOptions
 from .model import OutputSpec, Scene, default_bundle_path
 from .read import _out_path, output_problem
 
@@ -73,7 +73,7 @@ def save_scene(scene: Scene, path: str | os.PathLike) -> Path:
     p = _out_path(str(path), "--save-scene")
     if problem := output_problem(p):
         raise SceneError(f"--save-scene: {problem}")
-    from ..atomic import staged_file
+    from ..files.atomic import staged_file
 
     with staged_file(p) as tmp:
         tmp.write_text(scene_to_toml(scene))
@@ -83,7 +83,7 @@ def save_scene(scene: Scene, path: str | os.PathLike) -> Path:
 # -- planning ---------------------------------------------------------------------------
 def _bundle_summary(path: Path) -> tuple[bool | None, str]:
     """(needs_depth or None if unreadable, one-line description)."""
-    from ..bundle import load_bundle
+    from ..bundle.store import load_bundle
 
     try:
         b = load_bundle(path)

@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 from ..errors import SceneError, SourceError
-from ..gate import GateOptions
+from ..gate.contact_gate import GateOptions
 from ..typed_json import check
 from .model import Clock, SensorKeys, SensorSpec
 
@@ -97,7 +97,7 @@ class VirtualKeys(SensorKeys):
 
 
 def _open_camera(s: SensorSpec, clock: Clock):
-    from ..sources import CameraSource
+    from ..sources.files import CameraSource
 
     return CameraSource(s.device, fps=s.fps or 60.0, name=s.name, clock=clock)
 
@@ -160,14 +160,14 @@ def _open_gelsight_mini(s: SensorSpec, clock: Clock):
 
 
 def _open_replay(s: SensorSpec, clock: Clock):
-    from ..sources import ReplayFolderSource
+    from ..sources.files import ReplayFolderSource
 
     assert s.path is not None  # required key of the kind
     return ReplayFolderSource(s.path, fps=s.fps, name=s.name, clock=clock)
 
 
 def _open_video(s: SensorSpec, clock: Clock):
-    from ..sources import VideoFileSource
+    from ..sources.files import VideoFileSource
 
     assert s.path is not None  # required key of the kind
     return VideoFileSource(s.path, fps=s.fps, name=s.name, clock=clock)

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
-from ..gate import GateOptions
+from ..gate.contact_gate import GateOptions
 from ..typed_json import check
 
 if TYPE_CHECKING:
@@ -123,8 +123,8 @@ class OutputSpec:
 @dataclass
 class DepthSettings:
     """The scene's [depth] table: the DepthOptions fields the scene sets; None = not set
-    (then the bundle manifest's :class:`~tactile_force.edge.manifest.DepthRecord`, else
-    the DepthOptions default: :func:`tactile_force.edge.runtime.depth_options_for` merges
+    (then the bundle manifest's :class:`~tactile_force.edge.bundle.manifest.DepthRecord`, else
+    the DepthOptions default: :func:`tactile_force.edge.runtime.loop.depth_options_for` merges
     them by field name). mapping: absolute (``package:FILE`` = a file in edge/assets)."""
 
     mapping: Path | None = field(default=None, metadata=check(

@@ -29,9 +29,9 @@ from .model import Scene, SensorSpec
 def depth_problems(scene: Scene) -> list[str]:
     """Why the depth stage of a depth-bundle scene could not be built (mapping missing,
     paper mode with a LUT, bad options), one message each; [] for RGB-only bundles."""
-    from ..bundle import load_bundle
+    from ..bundle.store import load_bundle
     from ..errors import BundleError, SceneError
-    from ..runtime import build_depth_stage
+    from ..runtime.loop import build_depth_stage
 
     out = []
     for b in scene.bundles:
@@ -66,7 +66,7 @@ def output_refusals(scene: Scene, scene_file: str | os.PathLike, force: bool = F
     """The output guard for a scene file's file outputs (csv, jsonl, mcap): an existing file
     needs ``force``, and no output may be or lie inside one of the scene's inputs (the scene
     file, its bundles, replay folders, backgrounds). One message per refused output."""
-    from ..output_guard import OutputKind, OutputRefused, check_output
+    from ..files.guard import OutputKind, OutputRefused, check_output
 
     inputs = scene_inputs(scene, scene_file)
     out = []
@@ -82,7 +82,7 @@ def output_refusals(scene: Scene, scene_file: str | os.PathLike, force: bool = F
 def _device_problem(s: SensorSpec) -> str | None:
     """Why ``run`` would refuse a live sensor at once because its device is not there (a
     /dev node that does not exist, a serial USB discovery does not list), else None."""
-    from ..sources import missing_camera
+    from ..sources.files import missing_camera
 
     if s.source == "camera":
         return missing_camera(s.device)
@@ -101,7 +101,7 @@ def _device_problem(s: SensorSpec) -> str | None:
 def source_problems(scene: Scene) -> list[str]:
     """What each sensor's source would refuse at once when ``run`` opens it (see the module
     docstring); paths that do not exist are left to :func:`~.read.scene_problems`."""
-    from ..sources import ReplayFolderSource, VideoFileSource, load_background
+    from ..sources.files import ReplayFolderSource, VideoFileSource, load_background
 
     out = []
     for i, s in enumerate(scene.sensors):

@@ -15,9 +15,9 @@ from pathlib import Path
 import numpy as np
 
 from ..checks import check_fields, expect
-from ..dataset import AuthorsDatasetWriter
+from ..data.dataset import AuthorsDatasetWriter
 from ..errors import DatasetError
-from ..progress import progress
+from ..report.progress import progress
 from ..typed_json import check
 from .digit import ContactSpec, VirtualDigit, VirtualDigitOptions
 from .indenters import STIFFNESS_CLASSES, get_indenter, paper_indenter_names

@@ -15,7 +15,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from ..dataset import AuthorsDataset
+from ..data.dataset import AuthorsDataset
 from .digit import ContactSpec, VirtualDigit, VirtualDigitOptions
 
 

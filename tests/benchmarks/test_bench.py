@@ -129,7 +129,7 @@ def test_bench_needs_no_torch_onnx_or_matplotlib(tmp_path):
     code = ("import sys, json\n"
             "for m in ('torch', 'onnx', 'matplotlib'): sys.modules[m] = None  # importing one would fail\n"
             "import tactile_force.benchmarks.bench, tactile_force.benchmarks.check, tactile_force.benchmarks.latency\n"
-            "import tactile_force.benchmarks.machine, tactile_force.edge.cli_bench, tactile_force.edge.plots\n"
+            "import tactile_force.benchmarks.machine, tactile_force.edge.cli.bench, tactile_force.edge.report.plots\n"
             "from tactile_force.edge.cli import main\n"
             f"rc = main(['bench', '--frames', '10', '--repeats', '1', '--out', {str(tmp_path / 'o')!r}])\n"
             "print(json.dumps([rc, sorted(m for m in sys.modules if m.split('.')[0] in "
@@ -149,7 +149,7 @@ def test_contact_frames_open_the_gate_on_every_frame():
 
 
 def _fresh(pool):
-    from tactile_force.edge.gate import ContactGate
+    from tactile_force.edge.gate.contact_gate import ContactGate
 
     g = ContactGate()
     g.capture_background(pool.background)
@@ -272,8 +272,8 @@ def test_bench_reports_the_precision_the_graph_holds_not_the_manifests(tmp_path)
     and the note says the manifest claims otherwise."""
     pytest.importorskip("onnx", reason="building the fp32 test graph needs the 'onnx' package (dev extra)")
     from tactile_force.benchmarks.bench import bench_bundle
-    from tactile_force.edge.bundle import write_bundle
-    from tactile_force.edge.graph_facts import bundle_precision
+    from tactile_force.edge.bundle.store import write_bundle
+    from tactile_force.edge.bundle.graph_facts import bundle_precision
 
     from tests.edge.conftest import mean_manifest, mean_model_bytes
 

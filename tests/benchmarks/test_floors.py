@@ -15,7 +15,7 @@ from benchmarks.machine import MachineState
 def test_check_less_gate_counts_changed_pixels_of_the_reduced_frame():
     rng = np.random.default_rng(0)
     frame = rng.integers(40, 200, (320, 240, 3), dtype=np.uint8)
-    from tactile_force.edge.reduce import default_reduction, reduce_frames
+    from tactile_force.edge.gate.reduce import default_reduction, reduce_frames
 
     bg = reduce_frames(frame[None], default_reduction(4))[0]
     gate = floors.CheckLessGate(bg, frame.shape, threshold=10.0)
@@ -87,7 +87,7 @@ def test_numba_shrink_gives_the_shipped_reduction_when_numba_is_there():
     shrink = floors.numba_shrink()
     if shrink is None:
         pytest.skip("numba is not installed (an optional experiment of the floors page, not a dependency)")
-    from tactile_force.edge.reduce import default_reduction, reduce_frames
+    from tactile_force.edge.gate.reduce import default_reduction, reduce_frames
 
     frame = np.random.default_rng(2).integers(0, 256, (320, 240, 3), dtype=np.uint8)
     out = np.empty((80, 60, 3), np.uint8)

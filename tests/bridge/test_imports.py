@@ -23,7 +23,7 @@ def test_edge_and_its_run_command_import_no_device_library():
         import importlib.util
         import tactile_force.edge
         from tactile_force.edge.cli import main
-        if importlib.util.find_spec("tactile_force.edge.cli_runtime") is not None:
+        if importlib.util.find_spec("tactile_force.edge.cli.run") is not None:
             try:
                 main(["run", "--help"])
             except SystemExit:

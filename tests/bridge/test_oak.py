@@ -8,8 +8,8 @@ import tarfile
 import numpy as np
 import pytest
 
-from tactile_force.edge.bundle import write_bundle
-from tactile_force.edge.manifest import InputKind, InputSpec, Manifest, OutputSpec
+from tactile_force.edge.bundle.store import write_bundle
+from tactile_force.edge.bundle.manifest import InputKind, InputSpec, Manifest, OutputSpec
 from tactile_force.edge.errors import AcceleratorUnavailableError, BundleError, FrameError
 from tactile_force.firmware_bridge import OakForceModel, OakOptions, build_nn_archive
 
@@ -82,7 +82,7 @@ def test_two_input_variant_and_missing_archive_are_refused(tmp_path, monkeypatch
 
 # -- with a (fake) device: host-fed queues -------------------------------------------------------------
 def test_predict_feeds_frames_through_the_queues(tmp_path, monkeypatch, aurova_dir):
-    from tactile_force.edge.dataset import AuthorsDataset
+    from tactile_force.edge.data.dataset import AuthorsDataset
 
     dai = fake_depthai(["14442C10D1"], model=lambda img: float(img[..., 2].mean()) / 10.0)
     monkeypatch.setitem(sys.modules, "depthai", dai)

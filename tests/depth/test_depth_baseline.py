@@ -1,9 +1,9 @@
 import numpy as np
 import pytest
 
-from tactile_force.edge.dataset import AuthorsDataset
+from tactile_force.edge.data.dataset import AuthorsDataset
 from tactile_force.edge.depth import MaxDeformationBaseline
-from tactile_force.edge.metrics import relative_error
+from tactile_force.edge.data.metrics import relative_error
 
 
 def test_baseline_fits_authors_depth(aurova_dir, tmp_path):

@@ -77,7 +77,7 @@ def test_cli_writes_the_circle_image(tmp_path, capsys):
     """The image next to the output shows every press with its circle where it was found."""
     import cv2
 
-    from tactile_force.edge.depth.cli import load_presses
+    from tactile_force.edge.cli.calibrate_depth import load_presses
 
     src = shared_data("gelsight_mini_ball_presses.npz")
     out = tmp_path / "cal" / "gs.npz"

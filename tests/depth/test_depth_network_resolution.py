@@ -19,7 +19,7 @@ import pytest
 from tactile_force.edge.depth import DepthOptions, DepthStage
 from tactile_force.edge.depth.poisson import PoissonSolver, forward_gradients
 from tactile_force.edge.depth.stage import _midpoint_slopes
-from tactile_force.edge.manifest import DepthRecord, FrameReduction, Reduction
+from tactile_force.edge.bundle.manifest import DepthRecord, FrameReduction, Reduction
 
 H, W, K = 320, 240, 4
 MAPPING = "edge/assets/virtual_digit_depth.npz"
@@ -95,7 +95,7 @@ def press():
 
 
 def test_stage_at_network_resolution_reads_full_or_reduced_input_alike(press):
-    from tactile_force.edge.reduce import default_reduction, reduce_frames
+    from tactile_force.edge.gate.reduce import default_reduction, reduce_frames
 
     frame, mask = press
     stage = DepthStage(DepthOptions(mapping=MAPPING, levels_per_px=255 / 48, downscale=4))
@@ -123,7 +123,7 @@ def test_stage_at_network_resolution_close_to_full_resolution_reduced(press):
 def test_checked_skips_only_the_repeated_frame_checks(press):
     """``checked=True`` (the runtime: it judged the reduced image's exposure) gives the same depth
     as the unchecked call, and a frame that is not a grid image is still checked."""
-    from tactile_force.edge.reduce import default_reduction, reduce_frames
+    from tactile_force.edge.gate.reduce import default_reduction, reduce_frames
 
     frame, mask = press
     stage = DepthStage(DepthOptions(mapping=MAPPING, levels_per_px=255 / 48, downscale=4))
@@ -173,8 +173,8 @@ def test_depth_record_carries_the_grid_and_old_records_mean_full_resolution():
 
 
 def test_runtime_builds_the_recorded_grid():
-    from tactile_force.edge.manifest import InputKind, InputSpec, Manifest
-    from tactile_force.edge.runtime import build_depth_stage
+    from tactile_force.edge.bundle.manifest import InputKind, InputSpec, Manifest
+    from tactile_force.edge.runtime.loop import build_depth_stage
 
     red = FrameReduction(Reduction.AREA_2X_STEPS, 4)
     m = Manifest("d", "fp32", [InputSpec("depth", InputKind.DEPTH, [-1, 80, 60, 1], colour_order="GRAY",

@@ -1,4 +1,4 @@
-"""edge/background_policy.py on its own: entering and clearing a mismatch (one warning, one
+"""edge/gate/learning.py on its own: entering and clearing a mismatch (one warning, one
 note), and when a mismatched background is due to be re-learnt (stable, blob-free frames per
 kind, relearn_frames = 0 never). Real GateOptions and thumbnails as the gate makes them."""
 
@@ -8,8 +8,8 @@ import logging
 
 import numpy as np
 import pytest
-from tactile_force.edge.background_policy import RelearnPolicy
-from tactile_force.edge.gate import GateOptions
+from tactile_force.edge.gate.learning import RelearnPolicy
+from tactile_force.edge.gate.contact_gate import GateOptions
 
 THUMB = np.full((20, 15, 3), 100, np.uint8)
 ALL_FIT = np.full((20, 15), 255, np.uint8)
@@ -27,7 +27,7 @@ def _due_after(p: RelearnPolicy, frames: int, kind: str, frac: float = 0.0, inli
 
 def test_enter_warns_once_and_clear_notes_it(caplog):
     p = RelearnPolicy(GateOptions(relearn_frames=4))
-    with caplog.at_level(logging.INFO, logger="tactile_force.edge.gate"):
+    with caplog.at_level(logging.INFO, logger="tactile_force.edge.gate.contact_gate"):
         p.enter("sudden brightness step", "photometric")
         p.enter("sudden brightness step of 30", "photometric")
         assert (p.reason, p.kind) == ("sudden brightness step of 30", "photometric")
@@ -77,7 +77,7 @@ def test_relearn_frames_zero_is_never_due():
 
 
 def test_learner_averages_the_kept_frames_as_float32_copies():
-    from tactile_force.edge.background_policy import BackgroundLearner
+    from tactile_force.edge.gate.learning import BackgroundLearner
 
     learn = BackgroundLearner()
     work = np.full((80, 60, 3), 10, np.uint8)
@@ -94,7 +94,7 @@ def test_learner_averages_the_kept_frames_as_float32_copies():
 
 
 def test_gate_learns_from_the_first_background_frames_live():
-    from tactile_force.edge.gate import ContactGate
+    from tactile_force.edge.gate.contact_gate import ContactGate
 
     g = ContactGate(GateOptions(background_frames=3))
     frames = [np.full((320, 240, 3), v, np.uint8) for v in (90, 100, 110)]
@@ -105,8 +105,8 @@ def test_gate_learns_from_the_first_background_frames_live():
 
 
 def test_refresh_blends_a_frame_in_and_renews_the_reference():
-    from tactile_force.edge.background_policy import refresh
-    from tactile_force.edge.gate_checks import Reference
+    from tactile_force.edge.gate.learning import refresh
+    from tactile_force.edge.gate.checks import Reference
 
     bg = np.full((80, 60, 3), 100.0, np.float32)
     bg_thumb = np.full((20, 15, 3), 100.0, np.float32)

@@ -8,7 +8,7 @@ import os
 import shutil
 import sys
 
-from tactile_force.edge.bundle import load_bundle, write_bundle
+from tactile_force.edge.bundle.store import load_bundle, write_bundle
 from tactile_force.edge.cli import main as cli_main
 from tactile_force.edge.scene import default_bundle_path
 
@@ -111,7 +111,7 @@ def test_the_precision_verify_finds_on_every_kind_of_graph(make_bundle, tmp_path
     from onnx import TensorProto, helper
     from onnxruntime.quantization import QuantType, quantize_dynamic
     from onnxruntime.transformers.float16 import convert_float_to_float16
-    from tactile_force.edge.graph_facts import graph_facts, graph_precision, manifest_problems
+    from tactile_force.edge.bundle.graph_facts import graph_facts, graph_precision, manifest_problems
     from tactile_force.edge.scene import shipped_bundles
 
     for path in shipped_bundles().values():

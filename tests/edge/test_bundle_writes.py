@@ -12,14 +12,14 @@ import textwrap
 import pytest
 
 from tactile_force.edge import BundleError, load_bundle
-from tactile_force.edge.bundle import stale_partials, write_bundle
-from tactile_force.edge.inference import OnnxForceModel
-from tactile_force.edge.manifest import FrameReduction
+from tactile_force.edge.bundle.store import stale_partials, write_bundle
+from tactile_force.edge.model.onnx_model import OnnxForceModel
+from tactile_force.edge.bundle.manifest import FrameReduction
 from tactile_force.edge.scene import default_bundle_path
 
 WRITER = textwrap.dedent("""
     import os, sys
-    from tactile_force.edge import bundle as B
+    from tactile_force.edge.bundle import store as B
     dest, phase, exchange, tag = sys.argv[1], sys.argv[2], sys.argv[3] == "1", sys.argv[4]
     if not exchange:
         B._exchange = lambda a, b: False          # the two-rename path (filesystems without RENAME_EXCHANGE)

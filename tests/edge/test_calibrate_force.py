@@ -16,7 +16,7 @@ from tactile_force.edge import (
     default_bundle_path,
     load_bundle,
 )
-from tactile_force.edge.calibrate_force import (
+from tactile_force.edge.fitting.calibrate import (
     CalibrationLimits,
     CalibrationRefused,
     fit_force_calibration,
@@ -25,11 +25,11 @@ from tactile_force.edge.calibrate_force import (
     spearman,
 )
 from tactile_force.edge.cli import main as cli_main
-from tactile_force.edge.force_calibration import ForceCalibration
-from tactile_force.edge.gate import ContactGate
-from tactile_force.edge.inference import OnnxForceModel
-from tactile_force.edge.runtime import ForceRuntime, Sensor
-from tactile_force.edge.sources import ReplayFolderSource, load_background
+from tactile_force.edge.bundle.force_calibration import ForceCalibration
+from tactile_force.edge.gate.contact_gate import ContactGate
+from tactile_force.edge.model.onnx_model import OnnxForceModel
+from tactile_force.edge.runtime.loop import ForceRuntime, Sensor
+from tactile_force.edge.sources.files import ReplayFolderSource, load_background
 
 from tests.conftest import shared_data
 

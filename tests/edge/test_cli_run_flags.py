@@ -13,7 +13,7 @@ import cv2
 import numpy as np
 import pytest
 from tactile_force.edge.cli import main as cli_main
-from tactile_force.edge.cli_runtime import PLOT_NAME, LearningStatus, _plot_cv, nice_ticks
+from tactile_force.edge.cli.run import PLOT_NAME, LearningStatus, _plot_cv, nice_ticks
 from tactile_force.edge.errors import SceneError
 from tactile_force.edge.reading import Flags, ForceReading
 from tactile_force.edge.scene import load_scene, parse_scene, scene_from_flags
@@ -47,7 +47,7 @@ def test_run_from_flags_ends_with_re_and_mae_per_bin(tmp_path, monkeypatch, rgb_
 
 
 def test_error_summary_matches_metrics_on_the_readings(tmp_path, rgb_bundle, aurova_dir, aurova_bg, capsys):
-    from tactile_force.edge.metrics import error_stats
+    from tactile_force.edge.data.metrics import error_stats
 
     out_csv = tmp_path / "r.jsonl"
     assert cli_main(["run", "--source", str(aurova_dir), "--bundle", str(rgb_bundle), "--background",
@@ -167,7 +167,7 @@ def test_learning_shows_on_the_live_status_line():
 
 
 def test_progress_uses_tqdm(monkeypatch, capsys):
-    from tactile_force.edge.progress import progress
+    from tactile_force.edge.report.progress import progress
 
     monkeypatch.setenv("TACTILE_FORCE_PROGRESS", "1")
     assert list(progress(range(7), desc="frames")) == list(range(7))

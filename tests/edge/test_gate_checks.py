@@ -1,4 +1,4 @@
-"""edge/gate_checks.py on its own: each judging check answers on thumbnails built to show (or
+"""edge/gate/checks.py on its own: each judging check answers on thumbnails built to show (or
 not show) what it looks for, and writes only into the buffers it is given. Real OpenCV; the
 thumbnails are the gate's own (ContactGate's 20x15 thumbnail of a real DIGIT background)."""
 
@@ -7,8 +7,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
-from tactile_force.edge.gate import ContactGate
-from tactile_force.edge.gate_checks import (
+from tactile_force.edge.gate.contact_gate import ContactGate
+from tactile_force.edge.gate.checks import (
     Reference,
     borders_changed,
     colour_swapped,
@@ -16,7 +16,7 @@ from tactile_force.edge.gate_checks import (
     is_uniform,
     motion_explained,
 )
-from tactile_force.edge.sources import load_background
+from tactile_force.edge.sources.files import load_background
 
 from tests.conftest import shared_data
 
@@ -103,7 +103,7 @@ def test_is_uniform(bg):
 
 
 def test_noise_verdict_burst_blur_and_fine():
-    from tactile_force.edge.gate_checks import noise_verdict
+    from tactile_force.edge.gate.checks import noise_verdict
 
     assert noise_verdict(2.0, 2.0, [1.0, 1.0, 1.0], 2.2) == (False, "")
     burst, why = noise_verdict(9.0, 2.0, [1.0, 1.0, 1.0], 2.2)  # > 2.2 x 2 + 1

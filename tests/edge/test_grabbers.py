@@ -1,4 +1,4 @@
-"""edge/grabbers.py on its own: the one-slot hand-over, a source raising SourceError, a
+"""edge/runtime/grabbers.py on its own: the one-slot hand-over, a source raising SourceError, a
 failure re-raised in the loop's thread, stop(). The sources are fakes at the camera boundary;
 ordering is forced with events, no wall-clock assertions."""
 
@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 from tactile_force.edge import SourceError, TimedFrame
-from tactile_force.edge.grabbers import Grabbers, read_once
+from tactile_force.edge.runtime.grabbers import Grabbers, read_once
 
 WAIT_S = 20.0  # generous: only a hung thread ever gets near it
 

@@ -24,8 +24,8 @@ def _loaded(mods: set[str], prefix: str) -> bool:
 
 def test_import_edge_loads_only_the_contracts():
     mods = _modules("import tactile_force.edge")
-    assert {"tactile_force.edge.manifest", "tactile_force.edge.bundle", "tactile_force.edge.reading"} <= mods
-    for heavy in HEAVY + ("onnxruntime", "cv2", "tactile_force.edge.runtime", "tactile_force.edge.scene"):
+    assert {"tactile_force.edge.bundle.manifest", "tactile_force.edge.bundle.store", "tactile_force.edge.reading"} <= mods
+    for heavy in HEAVY + ("onnxruntime", "cv2", "tactile_force.edge.runtime.loop", "tactile_force.edge.scene"):
         assert not _loaded(mods, heavy), heavy
 
 
@@ -41,6 +41,6 @@ def test_an_rgbmod_runtime_never_loads_depth_synthetic_torch_or_devices(tmp_path
         f"rt = ForceRuntime([Sensor('s', ReplayFolderSource({str(tmp_path)!r}), ContactGate(GateOptions()))], "
         f"OnnxForceModel({str(default_bundle_path())!r}))\n"
         "rt.run(); rt.close()")
-    assert _loaded(mods, "onnxruntime") and _loaded(mods, "tactile_force.edge.runtime")
+    assert _loaded(mods, "onnxruntime") and _loaded(mods, "tactile_force.edge.runtime.loop")
     for heavy in HEAVY:
         assert not _loaded(mods, heavy), heavy

@@ -16,9 +16,9 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from tactile_force.edge.bundle import load_bundle, write_bundle
+from tactile_force.edge.bundle.store import load_bundle, write_bundle
 from tactile_force.edge.errors import BundleError
-from tactile_force.edge.interval import (
+from tactile_force.edge.bundle.interval import (
     ForceInterval,
     IntervalBin,
     IntervalError,
@@ -27,7 +27,7 @@ from tactile_force.edge.interval import (
     interval_coverage,
     min_points,
 )
-from tactile_force.edge.manifest import manifest_from_json
+from tactile_force.edge.bundle.manifest import manifest_from_json
 from tactile_force.edge.outputs import CsvWriter, JsonlWriter
 from tactile_force.edge.outputs.files import format_reading
 from tactile_force.edge.reading import Flags, ForceReading, IntervalState
@@ -156,7 +156,7 @@ def _virtual_presses(seed: int, n: int):
 def test_coverage_on_held_out_virtual_digit_presses():
     """The default bundle's model on presses of the S1 test indenters it never trained on:
     fitted on one seed's presses, the interval covers another seed's within tolerance."""
-    from tactile_force.edge.inference import OnnxForceModel
+    from tactile_force.edge.model.onnx_model import OnnxForceModel
     from tactile_force.edge.scene import default_bundle_path
 
     model = OnnxForceModel(default_bundle_path(), threads=1)
@@ -195,10 +195,10 @@ def test_manifest_round_trip(rgb_bundle, tmp_path, fitted):
 
 # -- the runtime ------------------------------------------------------------------------------------
 def _runtime_readings(bundle_path, frames_dir, background):
-    from tactile_force.edge.gate import ContactGate
-    from tactile_force.edge.inference import OnnxForceModel
-    from tactile_force.edge.runtime import ForceRuntime, Sensor
-    from tactile_force.edge.sources import ReplayFolderSource
+    from tactile_force.edge.gate.contact_gate import ContactGate
+    from tactile_force.edge.model.onnx_model import OnnxForceModel
+    from tactile_force.edge.runtime.loop import ForceRuntime, Sensor
+    from tactile_force.edge.sources.files import ReplayFolderSource
 
     gate = ContactGate()
     gate.capture_background(background)
@@ -211,7 +211,7 @@ def _runtime_readings(bundle_path, frames_dir, background):
 
 @pytest.fixture(scope="module")
 def aurova_background():
-    from tactile_force.edge.sources import load_background
+    from tactile_force.edge.sources.files import load_background
 
     return load_background(shared_data("digit_backgrounds", "aurova_background_b.png"))
 
@@ -248,7 +248,7 @@ def test_runtime_without_interval_says_unknown(rgb_bundle, aurova_dir, aurova_ba
 
 
 def test_no_contact_reading_uses_the_gate_closed_bound():
-    from tactile_force.edge.runtime import ForceRuntime
+    from tactile_force.edge.runtime.loop import ForceRuntime
 
     iv = fit_interval(*_hetero(np.random.default_rng(5), 200), no_contact_truth=np.r_[np.zeros(80), 0.3, 0.6])
     assert iv.no_contact_bounds() == (0.0, 0.0, IntervalState.KNOWN)  # 90 % of 82 gate-closed frames are 0 N
@@ -266,11 +266,11 @@ def test_no_contact_reading_uses_the_gate_closed_bound():
 def test_frames_read_while_the_background_is_learnt_have_no_known_interval(aurova_dir, aurova_background):
     """No background given: the first frames are averaged into it and not judged; whatever they
     show (here presses of 1.1-7.4 N), their interval is unknown, never [0, the gate-closed bound]."""
-    from tactile_force.edge.gate import ContactGate
-    from tactile_force.edge.inference import OnnxForceModel
-    from tactile_force.edge.runtime import ForceRuntime, RuntimeOptions, Sensor
+    from tactile_force.edge.gate.contact_gate import ContactGate
+    from tactile_force.edge.model.onnx_model import OnnxForceModel
+    from tactile_force.edge.runtime.loop import ForceRuntime, RuntimeOptions, Sensor
     from tactile_force.edge.scene import default_bundle_path
-    from tactile_force.edge.sources import ReplayFolderSource
+    from tactile_force.edge.sources.files import ReplayFolderSource
 
     from tests.conftest import ListSource
 
@@ -302,7 +302,7 @@ def test_frames_read_while_the_background_is_learnt_have_no_known_interval(aurov
 
 # -- calibrate-force replaces the interval ---------------------------------------------------------
 def test_calibrate_force_replaces_the_interval(tmp_path, aurova_dir):
-    from tactile_force.edge.calibrate_force import calibrate_bundle
+    from tactile_force.edge.fitting.calibrate import calibrate_bundle
     from tactile_force.edge.scene import default_bundle_path
 
     bundle, _ = calibrate_bundle(default_bundle_path(), aurova_dir, tmp_path / "cal")

@@ -1,4 +1,4 @@
-"""edge/judging.py on its own: range flags, saturation, out_of_distribution (colours, another
+"""edge/runtime/judging.py on its own: range flags, saturation, out_of_distribution (colours, another
 sensor), the background_mismatch / invalid_input verdict's detail, the data_stats check made
 on first use. Real GateResult and DataStatsCheck; the model is a plain record carrying a
 manifest (no inference is run here)."""
@@ -11,9 +11,9 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from tactile_force.edge.data_stats import DataStats
-from tactile_force.edge.gate import GateResult
-from tactile_force.edge.judging import EstimateJudge, gate_verdict
+from tactile_force.edge.bundle.data_stats import DataStats
+from tactile_force.edge.gate.contact_gate import GateResult
+from tactile_force.edge.runtime.judging import EstimateJudge, gate_verdict
 from tactile_force.edge.reading import MAX_VALID_FORCE_N, MIN_VALID_FORCE_N, Flags
 
 ROWS, COLS = 20, 15
@@ -93,7 +93,7 @@ def test_another_sensor_adds_out_of_distribution_also_to_a_failed_estimate():
 
 def test_data_stats_check_is_made_on_first_use_and_off_without_data_stats(caplog):
     j = EstimateJudge(_model(None))
-    with caplog.at_level(logging.WARNING, logger="tactile_force.edge.data_stats"):
+    with caplog.at_level(logging.WARNING, logger="tactile_force.edge.bundle.data_stats"):
         assert j.estimate(math.nan, _gate())[0] == Flags.INVALID_INPUT
         assert "data_stats" not in caplog.text  # not built for a failed estimate
         assert j.estimate(4.0, _gate(area_px=int(0.9 * 320 * 240), thumb_value=250)) == (Flags.NONE, 4.0, "")

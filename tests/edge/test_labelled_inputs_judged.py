@@ -13,9 +13,9 @@ import cv2
 import numpy as np
 import pytest
 from tactile_force.edge.cli import main as cli_main
-from tactile_force.edge.dataset import AuthorsDataset
+from tactile_force.edge.data.dataset import AuthorsDataset
 from tactile_force.edge.errors import DatasetError, SourceError
-from tactile_force.edge.sources import ReplayFolderSource
+from tactile_force.edge.sources.files import ReplayFolderSource
 
 from benchmarks.robustness import make_dataset
 

@@ -9,14 +9,14 @@ import textwrap
 import cv2
 import numpy as np
 from tactile_force.edge.reading import Flags
-from tactile_force.edge.runtime import build_depth_stage
+from tactile_force.edge.runtime.loop import build_depth_stage
 from tactile_force.edge.scene import build_scene, load_scene
 
 from tests.conftest import shared_data
 
 
 def test_relearnt_background_resets_the_paper_depth_reference(tmp_path, make_bundle, aurova_dir):
-    from tactile_force.edge.dataset import AuthorsDatasetWriter
+    from tactile_force.edge.data.dataset import AuthorsDatasetWriter
 
     bg_path = shared_data("digit_backgrounds", "aurova_background_b.png")
     bg = cv2.imread(str(bg_path))

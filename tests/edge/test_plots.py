@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import pytest
 from tactile_force.edge.cli import main
-from tactile_force.edge.plots import ParetoPoint, calibration_plot, error_vs_latency, pareto_front
+from tactile_force.edge.report.plots import ParetoPoint, calibration_plot, error_vs_latency, pareto_front
 from tactile_force.edge.scene import default_bundle_path
 
 
@@ -94,7 +94,7 @@ def test_plots_import_no_matplotlib():
     import subprocess
 
     code = ("import sys; sys.modules['matplotlib'] = None; import numpy as np; "
-            "from tactile_force.edge.plots import force_vs_time; "
+            "from tactile_force.edge.report.plots import force_vs_time; "
             "force_vs_time(np.arange(5.0), np.arange(5.0), None, sys.argv[1])")
     import tempfile
 

@@ -15,7 +15,7 @@ import pytest
 from tactile_force.edge import ContactGate, Flags, ForceRuntime, OnnxForceModel, RuntimeOptions, Sensor
 from tactile_force.edge.cli import main as cli_main
 from tactile_force.edge.scene import default_bundle_path
-from tactile_force.edge.sources import ReplayFolderSource
+from tactile_force.edge.sources.files import ReplayFolderSource
 
 from tests.conftest import shared_data
 
@@ -68,7 +68,7 @@ def test_a_no_contact_background_of_the_same_unit_is_not_flagged(calibrated, aur
 
 def test_data_stats_with_a_background_are_a_reference_too(aurova_dir):
     """An uncalibrated bundle whose data statistics were recorded with a no-contact background."""
-    from tactile_force.edge.data_stats import compute_data_stats
+    from tactile_force.edge.bundle.data_stats import compute_data_stats
 
     model = OnnxForceModel(default_bundle_path())
     frames = [cv2.imread(str(p)) for p in sorted((aurova_dir / "images").glob("*.png"))]

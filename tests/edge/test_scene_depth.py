@@ -10,8 +10,8 @@ from types import SimpleNamespace
 import pytest
 from tactile_force.edge.depth import DepthOptions
 from tactile_force.edge.errors import SceneError
-from tactile_force.edge.manifest import DepthRecord
-from tactile_force.edge.runtime import ASSETS_DIR, depth_options_for
+from tactile_force.edge.bundle.manifest import DepthRecord
+from tactile_force.edge.runtime.loop import ASSETS_DIR, depth_options_for
 from tactile_force.edge.scene import DepthSettings, load_scene, parse_scene, scene_to_toml
 
 SENSOR = {"sensor": [{"source": "virtual"}]}
@@ -53,7 +53,7 @@ def test_any_field_named_like_a_depth_option_flows_through():
 def test_the_manifest_depth_grid_becomes_the_stage_downscale():
     if "reduction" not in {f.name for f in dataclasses.fields(DepthRecord)}:
         pytest.skip("DepthRecord has no depth grid (reduction) in this tree")
-    from tactile_force.edge.manifest import FrameReduction, Reduction
+    from tactile_force.edge.bundle.manifest import FrameReduction, Reduction
 
     opts = depth_options_for(None, _manifest(mapping="m.npz", reduction=FrameReduction(Reduction.AREA, 4)))
     assert (opts.downscale, opts.reduction) == (4, "area")
@@ -115,7 +115,7 @@ def test_the_manifest_depth_record_is_checked_when_read(key, value, message):
     import json
 
     from tactile_force.edge.errors import BundleError
-    from tactile_force.edge.manifest import manifest_from_json
+    from tactile_force.edge.bundle.manifest import manifest_from_json
     from tactile_force.edge.scene import shipped_bundles
 
     if "d" not in shipped_bundles():

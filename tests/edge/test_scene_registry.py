@@ -12,9 +12,9 @@ import cv2
 import numpy as np
 import pytest
 from tactile_force.edge.errors import SceneError, SourceError
-from tactile_force.edge.gate import GateOptions
+from tactile_force.edge.gate.contact_gate import GateOptions
 from tactile_force.edge.reading import Flags
-from tactile_force.edge.runtime import ASSETS_DIR
+from tactile_force.edge.runtime.loop import ASSETS_DIR
 from tactile_force.edge.scene import (
     SOURCE_KINDS,
     SensorKeys,
@@ -153,7 +153,7 @@ def test_paper_depth_scene_runs_the_aurova_frames_with_no_invalid_input(tmp_path
 def test_paper_depth_reference_from_a_learnt_background(tmp_path, make_bundle, aurova_dir):
     """No background image: the gate learns it from the first no-contact frames and the
     runtime hands those same frames to the depth stage as its zero-depth reference."""
-    from tactile_force.edge.dataset import AuthorsDataset, AuthorsDatasetWriter
+    from tactile_force.edge.data.dataset import AuthorsDataset, AuthorsDatasetWriter
 
     root = tmp_path / "grasp"
     bg = cv2.imread(str(shared_data("digit_backgrounds", "aurova_background_b.png")))

@@ -14,7 +14,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-from tactile_force.edge import cli_runtime
+from tactile_force.edge.cli import run as cli_runtime
 from tactile_force.edge.cli import main as cli_main
 from tactile_force.edge.errors import SceneError
 from tactile_force.edge.scene import load_scene
@@ -93,7 +93,7 @@ def test_csv_path_that_is_a_folder_fails_before_the_model_is_loaded(tmp_path, rg
     with pytest.raises(SceneError, match=r"output\[0\]\.path: .*out is a folder; expected a file path"):
         load_scene(p)
     loaded = []
-    import tactile_force.edge.inference as inference
+    import tactile_force.edge.model.onnx_model as inference
 
     monkeypatch.setattr(inference.OnnxForceModel, "__init__", lambda *a, **k: loaded.append(1))
     assert cli_main(["run", "--scene", str(p)]) == 2
@@ -218,7 +218,7 @@ def test_every_sensor_lost_is_a_failed_check_exit_1(tmp_path, rgb_bundle, capsys
     folder = tmp_path / "vanishing"
     shutil.copytree(shared_data("aurova_digit_grasp"), folder)
     p = _replay_scene(tmp_path, rgb_bundle, folder, str(tmp_path / "r.csv"))
-    from tactile_force.edge import sources
+    from tactile_force.edge.sources import files as sources
 
     real = sources.ReplayFolderSource._load
 

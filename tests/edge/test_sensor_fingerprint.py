@@ -17,7 +17,7 @@ import pytest
 from tactile_force.edge import ContactGate, Flags, ForceRuntime, OnnxForceModel, RuntimeOptions, Sensor, load_bundle
 from tactile_force.edge.cli import main as cli_main
 from tactile_force.edge.scene import default_bundle_path
-from tactile_force.edge.sources import ReplayFolderSource
+from tactile_force.edge.sources.files import ReplayFolderSource
 
 from tests.conftest import shared_data
 
@@ -52,7 +52,7 @@ def calibrated(tmp_path_factory):
 
 
 def test_the_fingerprint_tells_units_apart_and_matches_the_same_unit(aurova_dir):
-    from tactile_force.edge.force_calibration import fingerprint_mismatch, sensor_fingerprint
+    from tactile_force.edge.bundle.force_calibration import fingerprint_mismatch, sensor_fingerprint
 
     fp = sensor_fingerprint(_unit(HOME), source=HOME)
     for other in ("aurova_background_a.png", "fots_digit_bg.png", "tacto_bg_digit_240_320.jpg"):

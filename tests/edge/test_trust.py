@@ -21,7 +21,7 @@ from tactile_force.edge import (
     RuntimeOptions,
     Sensor,
 )
-from tactile_force.edge.data_stats import DataStats, DataStatsCheck, compute_data_stats
+from tactile_force.edge.bundle.data_stats import DataStats, DataStatsCheck, compute_data_stats
 
 from tests.conftest import ListSource, shared_data
 
@@ -192,7 +192,7 @@ def test_led_step_is_flagged_then_the_background_is_relearnt(model, aurova_dir, 
     dim = np.clip(bg * 0.8, 0, 255).astype(np.uint8)
     press = np.clip(cv2.imread(str(aurova_dir / "images" / "1510.png")) * 0.8, 0, 255).astype(np.uint8)
     opts = GateOptions(relearn_frames=10)
-    with caplog.at_level(logging.INFO, logger="tactile_force.edge.gate"):
+    with caplog.at_level(logging.INFO, logger="tactile_force.edge.gate.contact_gate"):
         readings, gate, _ = _run(model, [dim] * 14 + [press] * 3, bg, options=opts)
     flags = [r.flags for r in readings]
     assert all(f & Flags.BACKGROUND_MISMATCH for f in flags[:10]), [f.names() for f in flags[:12]]
@@ -212,7 +212,7 @@ def test_a_long_press_during_a_step_is_never_absorbed(model, aurova_dir):
 
 def test_another_unit_plugged_in_is_relearnt_once_stable(model, caplog):
     other = _unit("tacto_bg_digit_240_320.jpg")
-    with caplog.at_level(logging.WARNING, logger="tactile_force.edge.gate"):
+    with caplog.at_level(logging.WARNING, logger="tactile_force.edge.gate.contact_gate"):
         readings, gate, _ = _run(model, [other] * 15, _unit(HOME), options=GateOptions(relearn_frames=10))
     flags = [r.flags for r in readings]
     assert all(f & Flags.BACKGROUND_MISMATCH for f in flags[:10]) and gate.relearned == 1
@@ -317,7 +317,7 @@ def test_saturated_when_the_contact_exceeds_the_data(model, stats, aurova_dir):
 
 
 def test_without_data_stats_the_check_is_skipped_with_one_warning(caplog):
-    with caplog.at_level(logging.WARNING, logger="tactile_force.edge.data_stats"):
+    with caplog.at_level(logging.WARNING, logger="tactile_force.edge.bundle.data_stats"):
         chk = DataStatsCheck(None, "old-bundle")
     assert not chk.active and chk.out_of_distribution(np.zeros((20, 15, 3), np.uint8)) == ""
     assert caplog.text.count("no data_stats") == 1 and "old-bundle" in caplog.text
@@ -325,7 +325,7 @@ def test_without_data_stats_the_check_is_skipped_with_one_warning(caplog):
 
 def test_data_stats_written_into_a_bundle_are_used_by_the_runtime(stats, tmp_path):
     from tactile_force.edge import OnnxForceModel
-    from tactile_force.edge.bundle import load_bundle, write_bundle
+    from tactile_force.edge.bundle.store import load_bundle, write_bundle
     from tactile_force.edge.scene import default_bundle_path
 
     src = load_bundle(default_bundle_path())

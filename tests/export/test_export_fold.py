@@ -8,7 +8,7 @@ import onnxruntime as ort
 import pytest
 import torch
 
-from tactile_force.edge.inference import OnnxForceModel
+from tactile_force.edge.model.onnx_model import OnnxForceModel
 from tactile_force.export import CalibrationData, ExportOptions, ForceNet, ModelSpec, build_model, export_bundle
 from tactile_force.export.preprocess import fold_input_scaling, input_convs
 from tactile_force.export.zoo import VARIANT_INPUTS
@@ -91,7 +91,7 @@ def test_manifest_says_what_was_folded(pair):
     m = folded.manifest
     assert m.architecture.preprocess_folded is True and plain.manifest.architecture.preprocess_folded is False
     assert m.preprocessing[:3] == ["frame 320x240 -> 80x60 outside the graph, once per frame: area-2x-steps x4 "
-                                   "(edge/reduce.py)", "NHWC -> NCHW (uint8)", "cast uint8 -> float32"]
+                                   "(edge/gate/reduce.py)", "NHWC -> NCHW (uint8)", "cast uint8 -> float32"]
     assert "BGR -> RGB (rgb input): folded into conv1's weights" in m.preprocessing
     assert "divide by 255: folded into conv1's weights" in m.preprocessing
     assert "divide by 255" in plain.manifest.preprocessing

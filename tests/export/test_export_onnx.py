@@ -8,7 +8,7 @@ import onnxruntime as ort
 import pytest
 import torch
 
-from tactile_force.edge.bundle import load_bundle
+from tactile_force.edge.bundle.store import load_bundle
 from tactile_force.edge.errors import BundleError
 from tactile_force.export import (CalibrationData, ExportOptions, ForceNet, ModelSpec, ParityError, build_model,
                                   count_macs, export_bundle, model_from_checkpoint)

@@ -12,7 +12,7 @@ import onnxruntime as ort
 import pytest
 import torch
 
-from tactile_force.edge.metrics import error_stats
+from tactile_force.edge.data.metrics import error_stats
 from tactile_force.export import (CalibrationData, CalibrationError, ExportOptions, QuantizeError, QuantizeOptions,
                                   Preprocess, build_model, export_bundle, op_counts, ort_optimized_ops, quantize_bundle)
 

@@ -112,7 +112,7 @@ def test_bad_checkpoint_files_give_clear_errors(tmp_path, case):
 
 def test_preprocess_matches_opencv_area_resize_and_colour_swap(aurova):
     frame = cv2.imread(str(aurova / "images" / "1508.png"))
-    # the runtime's one reduction (edge/reduce.py: two exact 2x2 box averages, OpenCV INTER_AREA), bit for bit
+    # the runtime's one reduction (edge/gate/reduce.py: two exact 2x2 box averages, OpenCV INTER_AREA), bit for bit
     half = cv2.resize(frame, (120, 160), interpolation=cv2.INTER_AREA)
     reduced = cv2.resize(half, (60, 80), interpolation=cv2.INTER_AREA)
     expected = cv2.cvtColor(reduced, cv2.COLOR_BGR2RGB).astype(np.float32) / 255.0

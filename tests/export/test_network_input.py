@@ -9,8 +9,8 @@ import pytest
 torch = pytest.importorskip("torch", reason="export tests need the export extra")
 
 from tactile_force.edge import OnnxForceModel  # noqa: E402
-from tactile_force.edge.manifest import FrameReduction, Reduction  # noqa: E402
-from tactile_force.edge.reduce import reduce_frames  # noqa: E402
+from tactile_force.edge.bundle.manifest import FrameReduction, Reduction  # noqa: E402
+from tactile_force.edge.gate.reduce import reduce_frames  # noqa: E402
 from tactile_force.export import ExportOptions, ModelSpec, build_model, export_bundle  # noqa: E402
 from tactile_force.export.preprocess import reduce_nchw  # noqa: E402
 

@@ -19,7 +19,7 @@ from benchmarks.robustness import FixedScale, NoiseFrames, use_package_root  # n
 
 if os.environ.get("TF_PACKAGE_ROOT"):  # the baseline run against an older commit
     use_package_root(os.environ["TF_PACKAGE_ROOT"])
-from tactile_force.edge import dataset as ds_mod  # noqa: E402
+from tactile_force.edge.data import dataset as ds_mod  # noqa: E402
 from tactile_force.firmware_bridge.recorder import RecordOptions, record  # noqa: E402
 
 out, phase, k = Path(sys.argv[1]), sys.argv[2], int(sys.argv[3])
@@ -84,7 +84,7 @@ def open_meta(file, *a, **kw):
     return MetaFile(fh) if Path(file).name == "meta.jsonl" else fh
 
 
-ds_mod.open = open_meta  # a module global shadows the builtin inside tactile_force.edge.dataset
+ds_mod.open = open_meta  # a module global shadows the builtin inside tactile_force.edge.data.dataset
 
 result = record(NoiseFrames(), FixedScale(1.5), RecordOptions(out=out, max_samples=k + 5, handle_signals=False))
 print(f"not killed: wrote {result.written}", flush=True)

@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from tactile_force.edge.bundle import write_bundle
+from tactile_force.edge.bundle.store import write_bundle
 from tactile_force.edge.cli import main as cli_main
 from tactile_force.edge.errors import BundleError, TactileForceError
 from tactile_force.edge.scene import default_bundle_path
@@ -108,13 +108,13 @@ def test_quantize_onto_its_source_is_refused_with_force(tiny_checkpoint, tmp_pat
 
 
 def test_force_never_replaces_a_folder_that_is_not_a_bundle(tmp_path):
-    from tactile_force.edge.output_guard import OutputKind, OutputRefused, check_output
+    from tactile_force.edge.files.guard import OutputKind, OutputRefused, check_output
 
     folder = tmp_path / "mine"
     folder.mkdir()
     (folder / "thesis.tex").write_text("x")
     src = default_bundle_path()
-    from tactile_force.edge.bundle import load_bundle
+    from tactile_force.edge.bundle.store import load_bundle
 
     b = load_bundle(src)
     with pytest.raises(BundleError, match="not a bundle"):
@@ -178,7 +178,7 @@ def test_fifo_background_is_refused_at_once(replay, tmp_path):
 
 
 def test_special_file_input_is_refused_by_the_guard(tmp_path):
-    from tactile_force.edge.output_guard import OutputKind, OutputRefused, check_output
+    from tactile_force.edge.files.guard import OutputKind, OutputRefused, check_output
 
     fifo = _fifo(tmp_path / "frames")
     with pytest.raises(OutputRefused, match="FIFO"):

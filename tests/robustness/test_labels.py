@@ -10,9 +10,9 @@ import logging
 
 import pytest
 from hypothesis import example, given
-from tactile_force.edge.dataset import AuthorsDataset
-from tactile_force.edge.labels import MAX_FORCE_N, LabelError, read_force_file
-from tactile_force.edge.sources import ReplayFolderSource
+from tactile_force.edge.data.dataset import AuthorsDataset
+from tactile_force.edge.data.labels import MAX_FORCE_N, LabelError, read_force_file
+from tactile_force.edge.sources.files import ReplayFolderSource
 from tactile_force.export.calibration import CalibrationData, CalibrationError
 
 from benchmarks.robustness import (
@@ -79,7 +79,7 @@ def test_replay_warns_once_per_bad_label_and_keeps_running(tmp_path, caplog):
     root = make_dataset(tmp_path / "ds", n=4, forces=[1.0, 2.0, 3.0, 4.0])
     (root / "forces" / "force_1.txt").write_bytes(b"\xff\xfe")
     (root / "forces" / "force_2.txt").unlink()
-    with caplog.at_level(logging.WARNING, logger="tactile_force.edge.sources"):
+    with caplog.at_level(logging.WARNING, logger="tactile_force.edge.sources.files"):
         for _ in range(2):  # a second pass over the same files warns no more
             src = ReplayFolderSource(root, fps=None)
             truths = [tf.truth_n for tf in src]

@@ -1,7 +1,7 @@
 """Labels validated where they enter (issue 19, Build 4): one grammar (a decimal comma or a
 unit is an error naming the file), a FIFO label refused without blocking, duplicated or
 colliding presses and non-PNG presses refused naming the files, labels that look like
-another unit warned about. Through edge/labels.py, the dataset reader and calibrate-force."""
+another unit warned about. Through edge/data/labels.py, the dataset reader and calibrate-force."""
 
 from __future__ import annotations
 
@@ -13,9 +13,9 @@ from pathlib import Path
 
 import pytest
 from tactile_force.edge.cli import main as cli_main
-from tactile_force.edge.dataset import AuthorsDataset
+from tactile_force.edge.data.dataset import AuthorsDataset
 from tactile_force.edge.errors import DatasetError
-from tactile_force.edge.labels import LabelError, read_force_file
+from tactile_force.edge.data.labels import LabelError, read_force_file
 from tactile_force.edge.scene import default_bundle_path
 
 from benchmarks.robustness import expected_label
@@ -138,7 +138,7 @@ def test_labels_ten_times_too_large_give_a_warning_naming_the_cause(tmp_path, ca
 
 
 def test_unit_problem_rules():
-    from tactile_force.edge.labels import unit_problem
+    from tactile_force.edge.data.labels import unit_problem
 
     assert unit_problem([1.08, 5.0, 11.9], "d") is None
     assert "x10" in (unit_problem([10.8, 50.0, 118.8], "d") or "")

@@ -31,7 +31,7 @@ TF_CLI = Path(__file__).with_name("tf_cli.py")
 def replay(tmp_path_factory) -> Path:
     """A replay of 198 frames (the 11 real AUROVA presses, 18 times): at --fps 20 a run lasts
     10 s, long enough to be stopped; the CNN gives a force on most of them."""
-    from tactile_force.edge.dataset import AuthorsDataset, AuthorsDatasetWriter
+    from tactile_force.edge.data.dataset import AuthorsDataset, AuthorsDatasetWriter
 
     real = list(AuthorsDataset(shared_data("aurova_digit_grasp")))
     root = tmp_path_factory.mktemp("mcap_replay") / "replay"

@@ -6,8 +6,8 @@ from __future__ import annotations
 import json
 
 import pytest
-from tactile_force.edge.dataset import AuthorsDataset
-from tactile_force.edge.labels import LabelError
+from tactile_force.edge.data.dataset import AuthorsDataset
+from tactile_force.edge.data.labels import LabelError
 from tactile_force.firmware_bridge.recorder import RecordOptions, record, repair_dataset
 
 from benchmarks.robustness import (

@@ -12,7 +12,7 @@ import time
 from pathlib import Path
 
 import pytest
-from tactile_force.edge.atomic import OUTPUT_MARK, foreign_files, staged_folder
+from tactile_force.edge.files.atomic import OUTPUT_MARK, foreign_files, staged_folder
 from tactile_force.edge.cli import main
 
 

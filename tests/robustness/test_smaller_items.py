@@ -7,7 +7,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
-from tactile_force.edge.bundle import write_bundle
+from tactile_force.edge.bundle.store import write_bundle
 from tactile_force.edge.cli import main as cli_main
 
 from benchmarks.robustness import make_dataset

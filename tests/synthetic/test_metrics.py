@@ -1,4 +1,4 @@
-"""The paper's RE and MAE (edge/metrics.py) against values computed by hand."""
+"""The paper's RE and MAE (edge/data/metrics.py) against values computed by hand."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from tactile_force.edge.metrics import error_report, error_stats, force_bin_label, relative_error
+from tactile_force.edge.data.metrics import error_report, error_stats, force_bin_label, relative_error
 
 
 def test_relative_error_by_hand():

@@ -1,0 +1,226 @@
+"""Statistics of the frames a bundle's model was trained or calibrated on (manifest ``data_stats``),
+and the cheap per-frame check the runtime runs against them.
+
+A bundle records, at low resolution, the range of colours its data showed in every region of
+the frame, and the largest contact (area, deformation) the contact gate saw in it. At run time
+:class:`DataStatsCheck` compares the gate's 20x15 thumbnail of each frame with those ranges
+(``out_of_distribution``, force kept) and the gate's contact with the largest one seen
+(``saturated``: the gel shows more than the data covered). numpy only: this module is
+imported with every manifest; :func:`compute_data_stats` imports the gate (OpenCV) lazily.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:  # pragma: no cover
+    from ..gate.contact_gate import GateOptions
+
+_log = logging.getLogger(__name__)
+
+
+@dataclass
+class DataStats:
+    """Cheap statistics of the frames a bundle saw (BGR, grey levels 0..255).
+
+    frames: frames the statistics come from; contact_frames: of which the gate saw contact.
+    thumb_rows / thumb_cols: the thumbnail grid (one cell = 16x16 frame pixels; 20x15 for a
+        320x240 DIGIT frame).
+    cell_lo / cell_hi: per cell and channel (row-major, then B, G, R; rows x cols x 3 values)
+        the 0.5th / 99.5th percentile of the cell's mean colour over the frames.
+    channel_mean / channel_std: per channel (B, G, R) mean and spread of the frames' mean colour.
+    contact_area_frac_max: the largest contact area the gate saw, as a fraction of the frame
+        (None: no contact in the data).
+    deformation_max: the largest deformation the gate saw: mean colour change inside the
+        contact mask (grey levels, max over channels; None: no contact in the data).
+    contact_measured: False when no no-contact background was given: the colour ranges (the
+        out-of-distribution check) are recorded, the contact sizes are not (contact-size check off).
+    background_thumb: the no-contact background's colours on the same grid (INTER_AREA of the
+        first background frame; B, G, R per cell; empty without a background): the runtime
+        checks a background given to it for a press against it (edge/gate/given_background.py).
+    margin: grey levels added on both sides of every cell's range by the check.
+    max_outside_frac: share of thumbnail values outside their ranges above which a frame is
+        out of distribution.
+    source: what the frames were (e.g. "synthetic train split (S1), 600 frames").
+    """
+
+    frames: int = 0
+    contact_frames: int = 0
+    thumb_rows: int = 20
+    thumb_cols: int = 15
+    cell_lo: list[float] = field(default_factory=list)
+    cell_hi: list[float] = field(default_factory=list)
+    channel_mean: list[float] = field(default_factory=list)
+    channel_std: list[float] = field(default_factory=list)
+    contact_area_frac_max: float | None = None
+    deformation_max: float | None = None
+    contact_measured: bool = True
+    background_thumb: list[float] = field(default_factory=list)
+    margin: float = 12.0
+    max_outside_frac: float = 0.10
+    source: str = ""
+
+    def check(self) -> None:
+        """Raise ValueError naming the first field that does not fit the others."""
+        n = self.thumb_rows * self.thumb_cols * 3
+        if self.thumb_rows < 1 or self.thumb_cols < 1:
+            raise ValueError(f"thumb_rows={self.thumb_rows}, thumb_cols={self.thumb_cols}: expected >= 1")
+        for name in ("cell_lo", "cell_hi"):
+            if len(getattr(self, name)) != n:
+                raise ValueError(f"{name}: {len(getattr(self, name))} values; "
+                                 f"expected thumb_rows x thumb_cols x 3 = {n}")
+        if self.background_thumb and len(self.background_thumb) != n:
+            raise ValueError(f"background_thumb: {len(self.background_thumb)} values; expected {n} (or none)")
+        for name in ("channel_mean", "channel_std"):
+            if len(getattr(self, name)) not in (0, 3):
+                raise ValueError(f"{name}: {len(getattr(self, name))} values; expected 3 (B, G, R)")
+        if self.margin < 0 or not 0 < self.max_outside_frac < 1:
+            raise ValueError(f"margin={self.margin}, max_outside_frac={self.max_outside_frac}: expected margin >= 0 "
+                             "and 0 < max_outside_frac < 1")
+
+
+class DataStatsCheck:
+    """The per-frame check against a bundle's :class:`DataStats` (a few microseconds).
+
+    ``stats`` None: every check passes and one warning says the check is skipped.
+    """
+
+    def __init__(self, stats: DataStats | None, bundle_name: str = "bundle") -> None:
+        self.stats = stats
+        self._warned = False
+        self._name = bundle_name
+        if stats is None:
+            _log.warning("%s: manifest has no data_stats; the out-of-distribution check is skipped", bundle_name)
+            self._warned = True
+            return
+        stats.check()
+        shape = (stats.thumb_rows, stats.thumb_cols, 3)
+        m = stats.margin
+        self._lo = np.clip(np.floor(np.asarray(stats.cell_lo, np.float64) - m), 0, 255).astype(np.uint8).reshape(shape)
+        self._hi = np.clip(np.ceil(np.asarray(stats.cell_hi, np.float64) + m), 0, 255).astype(np.uint8).reshape(shape)
+        self._limit = int(stats.max_outside_frac * self._lo.size)
+        self._area_max = stats.contact_area_frac_max
+        self._deform_max = stats.deformation_max
+
+    @property
+    def active(self) -> bool:
+        return self.stats is not None
+
+    def out_of_distribution(self, thumb: np.ndarray | None) -> str:
+        """Why the frame (its gate thumbnail, rows x cols x 3 uint8) lies outside the data, or ""."""
+        if self.stats is None or thumb is None:
+            return ""
+        if thumb.shape != self._lo.shape:
+            if not self._warned:
+                _log.warning("%s: frame thumbnail %s does not match the data_stats grid %s; out-of-distribution "
+                             "check skipped", self._name, thumb.shape, self._lo.shape)
+                self._warned = True
+            return ""
+        outside = np.count_nonzero(thumb < self._lo) + np.count_nonzero(thumb > self._hi)
+        if outside > self._limit:
+            return (f"{100.0 * outside / thumb.size:.0f} % of the frame's low-resolution colours lie outside what "
+                    f"the bundle's data covered (another sensor, lighting or gel than the model saw)")
+        return ""
+
+    def beyond_coverage(self, area_frac: float, deformation: float) -> str:
+        """Why the contact is larger or deeper than any in the bundle's data, or ""."""
+        if self._area_max is not None and area_frac > self._area_max:
+            return (f"contact area {100 * area_frac:.0f} % of the frame exceeds the largest in the bundle's data "
+                    f"({100 * self._area_max:.0f} %): the estimate is a lower bound")
+        if self._deform_max is not None and deformation > self._deform_max:
+            return (f"deformation {deformation:.0f} grey levels exceeds the largest in the bundle's data "
+                    f"({self._deform_max:.0f}): the estimate is a lower bound")
+        return ""
+
+
+def compute_data_stats(frames_bgr: Iterable[np.ndarray], background: np.ndarray | Iterable[np.ndarray] | None,
+                       source: str = "", gate_options: GateOptions | None = None,
+                       lo_pct: float = 0.5, hi_pct: float = 99.5) -> DataStats:
+    """Statistics of ``frames_bgr`` (each HxWx3 uint8 BGR, e.g. a bundle's calibration or
+    training frames) seen through the contact gate with ``background`` (one no-contact frame
+    or several) as its background. ``background`` None: the colour ranges only
+    (``contact_measured`` False; the thumbnails do not depend on the background).
+
+    The gate runs with ``gate_options`` (default :class:`GateOptions`) with its judging off
+    and its background frozen, so every frame is measured against the same background.
+    Returns a :class:`DataStats` for the manifest's ``data_stats``.
+    """
+    import dataclasses
+
+    from ..gate.contact_gate import ContactGate, GateOptions  # OpenCV: imported only here
+
+    opts = dataclasses.replace(gate_options or GateOptions(), trust=False, refresh_rate=0.0)
+    gate = ContactGate(opts)
+    measured = background is not None
+    if background is not None:
+        bgs = [background] if isinstance(background, np.ndarray) and background.ndim == 3 else list(background)
+        gate.capture_background(bgs)
+    thumbs, areas, deforms = [], [], []
+    for frame in frames_bgr:
+        if not gate.background_ready:  # no background: any frame will do, only the thumbnails are kept
+            gate.capture_background([frame])
+        r = gate.update(frame)
+        assert r.thumb is not None
+        thumbs.append(r.thumb.astype(np.float32))
+        if r.contact and measured:
+            areas.append(r.area_frac)
+            deforms.append(r.deformation)
+    if not thumbs:
+        raise ValueError("compute_data_stats: no frames given; expected the frames the bundle was trained or "
+                         "calibrated on")
+    t = np.stack(thumbs)
+    rows, cols = t.shape[1:3]
+    means = t.reshape(len(t), -1, 3).mean(axis=1)
+    return DataStats(
+        frames=len(t), contact_frames=len(areas), thumb_rows=int(rows), thumb_cols=int(cols),
+        cell_lo=[round(float(v), 2) for v in np.percentile(t, lo_pct, axis=0).ravel()],
+        cell_hi=[round(float(v), 2) for v in np.percentile(t, hi_pct, axis=0).ravel()],
+        channel_mean=[round(float(v), 3) for v in means.mean(axis=0)],
+        channel_std=[round(float(v), 3) for v in means.std(axis=0)],
+        contact_area_frac_max=round(float(max(areas)), 5) if areas else None,
+        deformation_max=round(float(max(deforms)), 3) if deforms else None,
+        contact_measured=measured,
+        background_thumb=_background_thumb(bgs[0], int(rows), int(cols)) if background is not None else [],
+        source=source or f"{len(t)} frames",
+    )
+
+
+def _background_thumb(frame: np.ndarray, rows: int, cols: int) -> list[float]:
+    from .force_calibration import look
+
+    t = look(np.asarray(frame))
+    return [round(float(v), 2) for v in t.ravel()] if t.shape[:2] == (rows, cols) else []
+
+
+def frames_data_stats(frames_bgr: Iterable[np.ndarray], background: object, source: str,
+                      tool: str) -> DataStats:
+    """:func:`compute_data_stats` for a tool that writes a bundle (export, quantize, compress).
+
+    background: None, a no-contact frame (HxWx3 uint8 BGR) or the path of one (image file or
+    folder of them); without one only the colour ranges are recorded and a warning says the
+    contact-size check is off. Raises :class:`~.errors.SourceError` for an unreadable background.
+    """
+    import os
+
+    if isinstance(background, (str, os.PathLike)):
+        from ..sources.files import load_background  # OpenCV: imported only here
+
+        background = load_background(background)
+    if background is None:
+        _log.warning("%s: no no-contact background given: data_stats record the frames' colours (the "
+                     "out-of-distribution check) but not their contact sizes (the contact-size check is off); "
+                     "pass --background NO_CONTACT.png to record both", tool)
+    return compute_data_stats(frames_bgr, background, source=source)  # type: ignore[arg-type]
+
+
+def no_frames_warning(tool: str, why: str) -> str:
+    """The ``data_stats_missing`` text for a bundle written without frames, also logged as a warning."""
+    text = (f"{tool} saw no {why}: no data statistics, so the runtime's out-of-distribution and contact-size "
+            "checks are OFF for this bundle")
+    _log.warning("%s", text)
+    return text

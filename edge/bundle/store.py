@@ -1,0 +1,264 @@
+"""Model bundles on disk: an ONNX file plus its manifest, the only thing edge/ needs.
+
+A bundle is a folder ``NAME/`` holding ``model.onnx`` and ``model.json``, or a loose
+``NAME.onnx`` with a sibling ``NAME.json``. :func:`load_bundle` validates the manifest
+(:mod:`.manifest`), keeps the ONNX file inside the bundle folder and refuses a file
+whose sha256 does not match.
+
+Writing is crash-safe in every window. :func:`write_bundle` writes every file into a
+hidden sibling ``.NAME.XXXX.partial`` (fsync'd, with the writer's pid), then:
+
+- a new ``NAME`` appears by one ``rename``;
+- an existing ``NAME`` is swapped with the new folder by one ``renameat2(RENAME_EXCHANGE)``
+  (Linux), so ``NAME`` is at every instant either the old complete bundle or the new one.
+  Where the exchange is unavailable, the old folder is first renamed to ``.NAME.old``; a
+  crash between the two renames is repaired by the next :func:`load_bundle` or
+  :func:`write_bundle` (``.NAME.old`` moves back).
+
+Partials left by a killed writer (its pid no longer alive) are removed by the next write
+to the same place, or listed by :func:`stale_partials`.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import shutil
+import tempfile
+from collections.abc import Iterable
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..errors import BundleError
+from ..files.atomic import exchange as _exchange
+from ..files.atomic import fsync_dir as _fsync_dir
+from .manifest import Manifest, manifest_from_json
+
+_PID_FILE = ".writer-pid"
+
+
+@dataclass
+class Bundle:
+    """A verified bundle on disk."""
+
+    path: Path
+    onnx_path: Path
+    manifest: Manifest
+
+    @property
+    def variant(self) -> str:
+        """The variant's name, e.g. ``'rgbmod'``."""
+        return self.manifest.variant.value
+
+    @property
+    def name(self) -> str:
+        return self.manifest.name or self.path.stem
+
+
+def sha256_file(path: str | os.PathLike, chunk: int = 1 << 20) -> str:
+    """Hex sha256 of a file."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        while block := fh.read(chunk):
+            h.update(block)
+    return h.hexdigest()
+
+
+def _locate(path: Path) -> tuple[Path, Path]:
+    """(onnx_path, manifest_path) for a bundle folder or a loose .onnx/.json pair."""
+    if path.is_dir():
+        return path / "model.onnx", path / "model.json"
+    if path.suffix == ".onnx":
+        return path, path.with_suffix(".json")
+    if path.suffix == ".json":
+        return path.with_suffix(".onnx"), path
+    raise BundleError(f"{path}: not a bundle (expected a folder with model.onnx + model.json, "
+                      "or NAME.onnx with NAME.json)")
+
+
+def read_manifest(path: str | os.PathLike) -> Manifest:
+    """Read and validate a ``model.json`` file (format 1 is migrated)."""
+    p = Path(path)
+    try:
+        text = p.read_bytes().decode("utf-8")
+        raw = json.loads(text)
+    except UnicodeDecodeError:
+        raise BundleError(f"{p}: manifest is not UTF-8 text; the file is damaged or not a manifest") from None
+    except json.JSONDecodeError as exc:
+        raise BundleError(f"{p}: manifest is not valid JSON ({exc.msg} at line {exc.lineno}); "
+                          "the file may be truncated") from None
+    except OSError as exc:
+        raise BundleError(f"{p}: cannot read the manifest ({exc.strerror})") from None
+    return manifest_from_json(raw, source=str(p))
+
+
+def load_bundle(path: str | os.PathLike, verify: bool = True) -> Bundle:
+    """Read and verify a bundle.
+
+    Parameters
+    ----------
+    path
+        A bundle folder, or a loose ``NAME.onnx`` / ``NAME.json``.
+    verify
+        Check the ONNX file's sha256 against the manifest (default).
+
+    Returns
+    -------
+    Bundle
+
+    Raises
+    ------
+    BundleError
+        With the reason: missing files, a manifest that does not validate, an ONNX file
+        outside the bundle, a hash mismatch.
+    """
+    p = Path(path)
+    if not p.exists():
+        _recover(p)
+    if not p.exists():
+        raise BundleError(f"{p}: bundle not found")
+    onnx_path, man_path = _locate(p)
+    if not man_path.is_file():
+        raise BundleError(f"{man_path}: manifest missing; a bundle needs its JSON manifest next to the ONNX file")
+    manifest = read_manifest(man_path)
+    if p.is_dir():
+        onnx_path = p / manifest.onnx_file  # a plain file name: the manifest check refuses paths
+    if not onnx_path.is_file():
+        raise BundleError(f"{onnx_path}: ONNX file missing")
+    if onnx_path.stat().st_size == 0:
+        raise BundleError(f"{onnx_path}: ONNX file is empty")
+    if verify:
+        digest = sha256_file(onnx_path)
+        if digest != manifest.sha256:
+            raise BundleError(
+                f"{onnx_path}: sha256 {digest[:12]}... does not match the manifest's {manifest.sha256[:12]}...; "
+                "the model file is corrupted, truncated or belongs to another bundle. Re-export it."
+            )
+    return Bundle(path=p, onnx_path=onnx_path, manifest=manifest)
+
+
+def _phase(name: str) -> None:
+    """A named point in :func:`write_bundle` (crash tests replace it to kill the writer there)."""
+
+
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def stale_partials(dest: str | os.PathLike) -> list[Path]:
+    """Partial folders of ``dest`` whose writer is gone (killed mid-write)."""
+    dest = Path(dest)
+    out = []
+    for cand in dest.parent.glob(f".{dest.name}.*.partial"):
+        pid_file = cand / _PID_FILE
+        try:
+            pid = int(pid_file.read_text().strip())
+        except (OSError, ValueError):
+            pid = -1
+        if pid <= 0 or not _pid_alive(pid):
+            out.append(cand)
+    return out
+
+
+def _recover(dest: Path) -> None:
+    """Repair an interrupted two-rename swap: ``.NAME.old`` is the last complete bundle."""
+    old = dest.with_name(f".{dest.name}.old")
+    if old.is_dir():
+        if dest.exists():
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            os.replace(old, dest)
+            _fsync_dir(dest.parent)
+
+
+def write_bundle(dest: str | os.PathLike, onnx_bytes: bytes, manifest: Manifest,
+                 extra_files: dict[str, bytes] | None = None, overwrite: bool = False,
+                 inputs: Iterable[tuple[str, str | os.PathLike | None]] = ()) -> Bundle:
+    """Write a bundle folder crash-safely and return it verified.
+
+    Parameters
+    ----------
+    dest
+        The bundle folder to create (or replace, with ``overwrite``).
+    onnx_bytes
+        The serialized ONNX model.
+    manifest
+        Its manifest; ``sha256`` and ``onnx_file`` are filled in here.
+    extra_files
+        More files to put in the folder (name -> bytes).
+    overwrite
+        Replace an existing ``dest`` (atomically); only a bundle folder or an empty folder.
+    inputs
+        (name, path) of everything the bundle was made from: ``dest`` must not be, hold or lie
+        inside any of them (:func:`~tactile_force.edge.files.guard.check_output`), overwrite or not.
+
+    Returns
+    -------
+    Bundle
+        The written bundle, read back and verified.
+    """
+    dest = Path(dest)
+    if inputs:
+        from ..files.guard import OutputKind, check_output
+
+        check_output(dest, inputs, force=True, kind=OutputKind.BUNDLE, flag="bundle destination")
+    _recover(dest)
+    for stale in stale_partials(dest):
+        shutil.rmtree(stale, ignore_errors=True)
+    if dest.exists() and not overwrite:
+        raise BundleError(f"{dest}: already exists (pass overwrite=True / --force to replace it)")
+    if dest.exists() and not dest.is_dir():
+        raise BundleError(f"{dest}: exists and is not a bundle folder; refusing to replace it")
+    if dest.is_dir() and any(dest.iterdir()) and not (dest / "model.json").is_file():
+        raise BundleError(f"{dest}: is a folder of other files (no model.json), not a bundle; overwrite replaces "
+                          "only a bundle folder: expected a new folder")
+    if not onnx_bytes:
+        raise BundleError(f"{dest}: refusing to write an empty ONNX model")
+    manifest.sha256 = hashlib.sha256(onnx_bytes).hexdigest()
+    manifest.onnx_file = "model.onnx"
+    try:
+        manifest.check()
+    except ValueError as exc:
+        raise BundleError(f"{dest}: refusing to write an inconsistent manifest ({exc})") from None
+    manifest_text = manifest.to_json()
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{dest.name}.", suffix=".partial", dir=dest.parent))
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(tmp, 0o777 & ~umask)  # mkdtemp makes it 0700; a bundle is readable like any folder
+    try:
+        (tmp / _PID_FILE).write_text(str(os.getpid()))
+        files = {"model.onnx": onnx_bytes, "model.json": manifest_text.encode()}
+        files.update(extra_files or {})
+        for name, data in files.items():
+            with open(tmp / name, "wb") as fh:
+                fh.write(data)
+                fh.flush()
+                os.fsync(fh.fileno())
+        _phase("files-written")
+        (tmp / _PID_FILE).unlink()
+        _fsync_dir(tmp)
+        if not dest.exists():
+            os.rename(tmp, dest)
+        elif _exchange(tmp, dest):
+            _phase("exchanged")
+            shutil.rmtree(tmp, ignore_errors=True)  # tmp now holds the old bundle
+        else:
+            old = dest.with_name(f".{dest.name}.old")
+            os.replace(dest, old)
+            _phase("old-moved")
+            os.replace(tmp, dest)
+            shutil.rmtree(old, ignore_errors=True)
+        _fsync_dir(dest.parent)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        _recover(dest)
+        raise
+    return load_bundle(dest)

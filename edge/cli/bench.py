@@ -1,0 +1,113 @@
+"""CLI: ``tactile-force bench`` - does each bundle meet its latency budget on this host, at what error?
+
+Core install only (no torch): the work is :mod:`tactile_force.benchmarks.bench`. Exit codes
+follow :mod:`tactile_force.edge.cli`: 0 every bundle within budget, 1 any over budget or no
+verdict (machine busy, too few readings), 2 bad input (a missing bundle, an unusable --data /
+--background, an --out that exists without --force or is an input), 130 / 143 interrupted
+(``--out`` left as it was).
+"""
+
+from __future__ import annotations
+
+import argparse
+import shlex
+import sys
+from pathlib import Path
+
+from ..errors import TactileForceError
+from .args import non_negative_int, positive_float, positive_int
+
+
+class BenchInputError(TactileForceError):
+    """A ``tactile-force bench`` argument is unusable (exit 2); the message names it."""
+
+
+def configure(p: argparse.ArgumentParser) -> None:
+    p.formatter_class = argparse.RawDescriptionHelpFormatter
+    p.description = (
+        "Measure bundles through the runtime on THIS host and judge the latency budget (end-to-end total p99):\n"
+        "  tactile-force bench                                  # every shipped bundle\n"
+        "  tactile-force bench --bundle my_int8 my_fp32         # your bundles\n"
+        "  tactile-force bench --bundle B --data LABELLED_DIR --background NO_CONTACT.png   # + error (RE, MAE)\n"
+        "Writes report.json (docs/bench.md), report.md and pareto.png (error vs p99) to --out.\n"
+        "Exit 0 every bundle within budget, 1 any over budget or machine busy (no verdict), 2 bad input.")
+    p.add_argument("--bundle", nargs="+", metavar="B", help="bundle folder(s) to measure (default: every shipped "
+                                                            "bundle)")
+    p.add_argument("--data", type=Path, help="labelled folder in the authors' layout (images/N.png + "
+                                             "forces/force_N.txt, e.g. from record or synth): adds error vs truth")
+    p.add_argument("--background", type=Path, help="with --data: the sensor's no-contact image (else learnt from "
+                                                   "the first frames, as 'run' does)")
+    p.add_argument("--threads", type=positive_int, default=1, help="ONNX Runtime / OpenCV threads (default 1)")
+    p.add_argument("--budget-ms", type=positive_float, default=1.0,
+                   help="budget for the end-to-end total p99 in ms (default 1.0)")
+    p.add_argument("--frames", type=positive_int, default=1000, help="readings measured per bundle (default 1000)")
+    p.add_argument("--repeats", type=positive_int, default=3,
+                   help="attempts at most; a new one only after one over budget on a busy machine (default 3)")
+    p.add_argument("--pause-s", type=non_negative_int, default=30, help="seconds before a repeat (default 30)")
+    p.add_argument("--out", type=Path, default=Path("tactile_force_bench"),
+                   help="output folder (default tactile_force_bench); written whole when the bench ends")
+    p.add_argument("--force", action="store_true", help="replace --out when it holds an earlier bench result")
+
+
+def _check_args(args: argparse.Namespace) -> list[Path]:
+    bundles = [Path(b) for b in args.bundle] if args.bundle else None
+    if bundles is None:
+        from tactile_force.benchmarks.bench import shipped_bundles
+
+        bundles = shipped_bundles()
+        if not bundles:
+            raise BenchInputError("no shipped bundle found in this install; give --bundle B")
+    for b in bundles:
+        if not (b / "model.json").is_file():
+            raise BenchInputError(f"--bundle {b}: not a bundle folder (expected model.json in it)")
+    if args.background is not None and args.data is None:
+        raise BenchInputError("--background: only with --data (the labelled frames it belongs to)")
+    if args.data is not None and not args.data.is_dir():
+        raise BenchInputError(f"--data {args.data}: folder not found (expected the authors' layout: images/N.png + "
+                              "forces/force_N.txt)")
+    if args.data is not None:  # its frames judged now, as the replay will (before any measurement)
+        from ..errors import SourceError
+        from ..sources.files import ReplayFolderSource
+
+        try:
+            ReplayFolderSource(args.data).close()
+        except SourceError as exc:
+            raise BenchInputError(f"--data: {exc}") from None
+    if args.background is not None and not args.background.exists():
+        raise BenchInputError(f"--background {args.background}: not found (expected a no-contact image)")
+    from ..files.guard import OutputKind, check_output
+
+    # --out is bench's own result folder: never an input, replaced only with --force and only when
+    # it is an earlier bench result holding nothing else
+    check_output(args.out, [("--bundle", b) for b in bundles] + [("--data", args.data),
+                                                                  ("--background", args.background)],
+                 force=args.force, kind=OutputKind.FOLDER, verb="bench")
+    return bundles
+
+
+def main(args: argparse.Namespace) -> int:
+    from tactile_force.benchmarks.bench import run_bench, text_table, write_report
+    from tactile_force.benchmarks.stats import MIN_P99_READINGS
+
+    from ..files.atomic import staged_folder
+    from ..report.logs import quiet_loggers
+
+    bundles = _check_args(args)
+    # The bench frames are virtual DIGIT frames: a bundle made for another sensor would only
+    # warn about its data statistics on every row; the figures are latency, not accuracy.
+    command = "tactile-force bench " + " ".join(shlex.quote(a) for a in sys.argv[2:]) \
+        if len(sys.argv) > 1 and sys.argv[1] == "bench" else "tactile-force bench"
+    print(f"bench: {len(bundles)} bundle(s), {args.frames} frames each, {args.threads} thread(s), "
+          f"budget {args.budget_ms:g} ms" + (f", error on {args.data}" if args.data else ""), file=sys.stderr)
+    if args.frames < MIN_P99_READINGS:
+        print(f"bench: --frames {args.frames} is below the {MIN_P99_READINGS} readings a p99 verdict needs: the "
+              "figures are measured, the verdict will be 'too few readings'", file=sys.stderr)
+    with quiet_loggers("tactile_force.edge.bundle.data_stats"):
+        report = run_bench(bundles, frames=args.frames, threads=args.threads, budget_ms=args.budget_ms,
+                           data=args.data, background=args.background, repeats=args.repeats,
+                           pause_s=float(args.pause_s), command=command.strip())
+    with staged_folder(args.out, "bench") as tmp:
+        names = [p.name for p in write_report(report, tmp)]
+    print(text_table(report))
+    print("wrote " + ", ".join(str(args.out / n) for n in names))
+    return 0 if report.passed else 1

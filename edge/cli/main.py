@@ -1,0 +1,210 @@
+"""``tactile-force``: one console script, subcommands imported lazily.
+
+Each subcommand lives in the module that owns its work and exposes two functions,
+``configure(parser)`` and ``main(args) -> int``. Only the chosen subcommand's module is
+imported, so ``tactile-force run`` never imports torch and ``--help`` is instant.
+
+One error contract for every command: exit 0 success, 1 a check failed (parity, verify,
+budget; :class:`~tactile_force.edge.errors.CheckFailedError`), 2 bad input or usage (any
+other TactileForceError, an OSError on a path the user gave, a missing extra, an argparse
+error), 130 interrupted by SIGINT (Ctrl-C), 143 by SIGTERM. Errors are one line; ``--debug``
+shows the traceback.
+
+Both signals raise :class:`Interrupted` (a ``KeyboardInterrupt``) in the main thread, so every
+verb unwinds through its clean-up (a half-made output is removed, :mod:`.atomic`); a verb that
+catches the interrupt itself still exits 130 / 143, never 0.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import signal
+import sys
+import threading
+
+#: name -> (module, configure function, main function, one-line help)
+COMMANDS: dict[str, tuple[str, str, str, str]] = {
+    "demo": ("tactile_force.edge.cli.run", "configure_demo", "main_demo",
+             "virtual DIGIT grasps -> embedded default model: readings, error, latency, plot (no hardware)"),
+    "run": ("tactile_force.edge.cli.run", "configure_run", "main_run",
+            "run a scene file (live sensors or replay) and stream force readings"),
+    "scene": ("tactile_force.edge.cli.run", "configure_scene", "main_scene",
+              "inspect a scene file: 'scene show FILE' prints the stages that will run"),
+    "export": ("tactile_force.export.cli", "configure_export", "main_export",
+               "checkpoint (.pth) + variant -> verified fp32 ONNX bundle (needs the 'export' extra)"),
+    "quantize": ("tactile_force.export.cli", "configure_quantize", "main_quantize",
+                 "fp32 bundle -> int8 static / int8 dynamic / fp16 bundle with error report"),
+    "bundle": ("tactile_force.edge.cli.bundle", "configure_bundle", "main_bundle",
+               "show and verify a model bundle (manifest, hash, graph contract; no torch needed)"),
+    "calibrate-force": ("tactile_force.edge.fitting.calibrate", "configure", "main",
+                        "fit a per-sensor force calibration from 10-30 labelled presses into a new bundle"),
+    "compress": ("tactile_force.export.cli_compress", "configure", "main",
+                 "distil a trained model into compact students on unlabelled frames; keep the best within budget"),
+    "bench": ("tactile_force.edge.cli.bench", "configure", "main",
+              "does each bundle meet the latency budget on this host, at what error? report + plot (no torch)"),
+    "study": ("tactile_force.export.cli_study", "configure", "main",
+              "quantization study of your fp32 bundle on your labelled data: error vs latency per configuration"),
+    "synth": ("tactile_force.edge.cli.synth", "configure", "main",
+              "generate a synthetic labelled DIGIT dataset in the authors' layout"),
+    "calibrate-depth": ("tactile_force.edge.cli.calibrate_depth", "configure", "main",
+                        "fit a colour->normal mapping from ball presses and report its angle error"),
+    "devices": ("tactile_force.firmware_bridge.cli", "configure_devices", "main_devices",
+                "list attached DIGIT / GelSight Mini / OAK devices and what is wrong with them"),
+    "record": ("tactile_force.firmware_bridge.cli", "configure_record", "main_record",
+               "record frames with a HID reference scale's force into the authors' dataset layout"),
+}
+
+
+#: top-level module -> the extra that provides it (a missing one gives one line and exit 2)
+_EXTRA_OF = {"torch": "export", "onnx": "export", "onnxscript": "export", "usb": "usb", "hid": "usb",
+             "depthai": "oak", "matplotlib": "bench", "cyclonedds": "ros2", "mcap": "mcap"}
+_EXTRA_HINT = {
+    "export": ("Install torch's CPU build first (pip install torch with the CPU-only wheel index that PyTorch's "
+               "install page gives for your platform; a plain 'pip install torch' pulls a multi-GB CUDA build), "
+               "then: pip install 'tactile-force[export]'"),
+    "usb": "Install it with: pip install 'tactile-force[usb]'",
+    "oak": "Install it with: pip install 'tactile-force[oak]'",
+    "bench": "Install it with: pip install 'tactile-force[bench]'",
+    "ros2": "Install it with: pip install 'tactile-force[ros2]'",
+    "mcap": "Install it with: pip install 'tactile-force[mcap]'",
+}
+
+
+def _top_help() -> str:
+    width = max(len(n) for n in COMMANDS)
+    lines = [
+        "usage: tactile-force COMMAND [options]   (tactile-force COMMAND --help for details)",
+        "",
+        "Grasping-force estimation for DIGIT / GelSight Mini tactile sensors.",
+        "",
+        "commands:",
+    ]
+    lines += [f"  {n.ljust(width)}  {h}" for n, (_, _, _, h) in COMMANDS.items()]
+    lines += ["", "Start with: tactile-force demo"]
+    return "\n".join(lines)
+
+
+def _exit_code(exc: BaseException) -> tuple[int, str]:
+    """(exit code, one-line message) for an exception a command raised: 1 a check failed,
+    2 bad input or usage (a TactileForceError, an OSError on a path the user gave, a missing
+    extra); anything else is a bug: 1 with a hint to rerun with --debug."""
+    from ..errors import CheckFailedError, TactileForceError
+
+    if isinstance(exc, CheckFailedError):
+        return 1, f"FAILED: {exc}"
+    if isinstance(exc, TactileForceError):
+        return 2, f"error: {exc}"
+    if isinstance(exc, ModuleNotFoundError):
+        extra = _EXTRA_OF.get((exc.name or "").split(".")[0])
+        if extra is not None:
+            return 2, f"needs the '{extra}' extra ({exc.name} is not installed). {_EXTRA_HINT[extra]}"
+    if isinstance(exc, OSError):
+        where = f"{exc.filename}: " if exc.filename else ""
+        return 2, f"error: {where}{exc.strerror or exc}"
+    return 1, (f"internal error: {type(exc).__name__}: {exc} "
+               "(please report it; rerun with --debug for the traceback)")
+
+
+class Interrupted(KeyboardInterrupt):
+    """SIGINT or SIGTERM arrived while a command ran; ``signum`` says which."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+class _Signals:
+    """SIGINT and SIGTERM raise :class:`Interrupted` while a command runs (main thread only);
+    ``received`` remembers the first, so a verb that swallows it cannot exit 0."""
+
+    def __init__(self) -> None:
+        self.received: int | None = None
+        self._old: dict[int, object] = {}
+
+    def __enter__(self) -> _Signals:
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                self._old[sig] = signal.signal(sig, self._handle)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        for sig, old in self._old.items():
+            signal.signal(sig, old)  # type: ignore[arg-type]
+        self._old.clear()
+
+    def _handle(self, signum: int, frame: object) -> None:
+        if self.received is None:
+            self.received = signum
+        raise Interrupted(signum)
+
+    def code(self, exc: BaseException | None = None) -> int:
+        """128 + the signal's number (130 SIGINT, 143 SIGTERM)."""
+        signum = exc.signum if isinstance(exc, Interrupted) else (self.received or signal.SIGINT)
+        return 128 + int(signum)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run one subcommand. Exit codes: 0 success, 1 a check failed, 2 bad input or usage,
+    130 interrupted (SIGINT), 143 terminated (SIGTERM). ``--debug`` (anywhere, or
+    TACTILE_FORCE_DEBUG=1) shows tracebacks."""
+    import os
+
+    argv = list(sys.argv[1:] if argv is None else argv)
+    debug = "--debug" in argv or os.environ.get("TACTILE_FORCE_DEBUG", "") not in ("", "0")
+    argv = [a for a in argv if a != "--debug"]
+    if not argv or argv[0] in ("-h", "--help", "help"):
+        print(_top_help())
+        return 0
+    if argv[0] in ("-V", "--version"):
+        from importlib.metadata import version
+
+        print(f"tactile-force {version('tactile-force')}")
+        return 0
+    name = argv[0]
+    if name not in COMMANDS:
+        print(f"tactile-force: unknown command {name!r}\n\n{_top_help()}", file=sys.stderr)
+        return 2
+    module_name, configure_name, main_name, help_line = COMMANDS[name]
+    try:
+        module = importlib.import_module(module_name)
+    except ImportError as exc:  # ModuleNotFoundError, or MissingExtraError from a package's own check
+        from ..errors import MissingExtraError
+
+        missing = exc.module if isinstance(exc, MissingExtraError) else (exc.name or "")
+        extra = _EXTRA_OF.get(missing.split(".")[0])
+        if extra is None or debug:
+            raise
+        print(f"tactile-force {name}: needs the '{extra}' extra ({missing} is not installed). {_EXTRA_HINT[extra]}",
+              file=sys.stderr)
+        return 2
+    parser = argparse.ArgumentParser(prog=f"tactile-force {name}", description=help_line,
+                                     epilog="--debug: show the traceback of an error")
+    getattr(module, configure_name)(parser)
+    try:
+        args = parser.parse_args(argv[1:])
+    except SystemExit as exc:  # usage errors (2) and --help (0), also when called in-process
+        return exc.code if isinstance(exc.code, int) else 2
+    signals = _Signals()
+    try:
+        with signals:
+            code = int(getattr(module, main_name)(args) or 0)
+    except KeyboardInterrupt as exc:
+        print(f"tactile-force {name}: interrupted; nothing half-made was kept", file=sys.stderr)
+        return signals.code(exc)
+    except Exception as exc:  # the error contract: one line, no traceback (--debug shows it)
+        if signals.received is not None:  # an error raised while unwinding from a signal
+            print(f"tactile-force {name}: interrupted ({type(exc).__name__} while stopping)", file=sys.stderr)
+            return signals.code()
+        if debug:
+            raise
+        code, message = _exit_code(exc)
+        print(f"tactile-force {name}: {message}", file=sys.stderr)
+        return code
+    if signals.received is not None:  # the verb caught the interrupt itself: never a success
+        return signals.code()
+    return code
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,108 @@
+"""``tactile-force synth``: generate a synthetic labelled DIGIT dataset (authors' layout).
+
+    tactile-force synth --out data/synth --n 5000 --seed 0
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+from pathlib import Path
+
+from .args import finite_float
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    """Arguments of the synth command."""
+    parser.add_argument("--out", required=True, help="output folder (new or empty; written whole when done)")
+    parser.add_argument("--force", action="store_true", help="replace --out when it holds an earlier synth dataset")
+    parser.add_argument("--n", type=int, default=1000, help="number of samples (default 1000)")
+    parser.add_argument("--seed", type=int, default=0, help="random seed (same seed -> same files)")
+    parser.add_argument("--indenters", default="paper",
+                        help="'paper' (the 18 paper-like indenters), 'all', or comma-separated names")
+    parser.add_argument("--frames-per-grasp", type=int, default=8, help="samples sharing one pose (default 8)")
+    parser.add_argument("--edge-fraction", type=finite_float, default=0.15, help="share of contacts near a border")
+    parser.add_argument("--below-fraction", type=finite_float, default=0.0, help="share of samples in 0-1 N")
+    parser.add_argument("--above-fraction", type=finite_float, default=0.0, help="share of samples in 15-20 N")
+    parser.add_argument("--no-contact-fraction", type=finite_float, default=0.0, help="share of 0 N frames")
+    parser.add_argument("--background", default=None, help="no-contact DIGIT frame to render on (default: shipped)")
+    parser.add_argument("--normal-to-rgb-mlp", default=None,
+                        help="FOTS normal->colour MLP .npz to shade with instead of the analytic LED model")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def _problems(args: argparse.Namespace) -> list[str]:
+    """What is wrong with the arguments (before anything is rendered), one line each."""
+    out: list[str] = []
+    if args.n < 1:
+        out.append(f"--n {args.n}: expected a number of samples >= 1")
+    if args.frames_per_grasp < 1:
+        out.append(f"--frames-per-grasp {args.frames_per_grasp}: expected >= 1")
+    for flag in ("edge_fraction", "below_fraction", "above_fraction", "no_contact_fraction"):
+        v = getattr(args, flag)
+        if not (math.isfinite(v) and 0.0 <= v <= 1.0):
+            out.append(f"--{flag.replace('_', '-')} {v}: expected a share from 0 to 1")
+    if args.below_fraction + args.above_fraction > 1.0:
+        out.append("--below-fraction + --above-fraction add up to more than 1")
+    dest = Path(args.out)
+    from ..files.guard import OutputKind, OutputRefused, check_output
+
+    try:  # a new or empty folder, or (--force) an earlier synth dataset; never an input
+        check_output(dest, [("--background", args.background), ("--normal-to-rgb-mlp", args.normal_to_rgb_mlp)],
+                     force=args.force, kind=OutputKind.FOLDER, verb="synth")
+    except OutputRefused as exc:
+        out.append(str(exc))
+    if dest.exists() and not dest.is_dir():
+        out.append(f"--out {dest}: is a file; expected a folder to create (or an empty one)")
+    else:
+        parent = next((p for p in (dest, *dest.parents) if p.exists()), Path("."))
+        if not parent.is_dir() or not os.access(parent, os.W_OK | os.X_OK):
+            out.append(f"--out {dest}: {parent} is not a writable folder")
+    for flag in ("background", "normal_to_rgb_mlp"):
+        v = getattr(args, flag)
+        if v is not None and not Path(v).is_file():
+            out.append(f"--{flag.replace('_', '-')} {v}: file not found")
+    return out
+
+
+def main(args: argparse.Namespace) -> int:
+    """Generate the dataset and print a JSON summary (exit 2 on bad arguments, before rendering)."""
+    problems = _problems(args)
+    if problems:
+        for p in problems:
+            print(f"tactile-force synth: error: {p}", file=sys.stderr)
+        return 2
+    from ..synthetic.digit import VirtualDigitOptions
+    from ..synthetic.generate import DatasetOptions, generate_dataset
+    from ..synthetic.indenters import INDENTERS, get_indenter, paper_indenter_names
+    from ..synthetic.sampling import ForceDistribution
+
+    if args.indenters == "paper":
+        names = tuple(paper_indenter_names())
+    elif args.indenters == "all":
+        names = tuple(INDENTERS)
+    else:
+        names = tuple(n.strip() for n in args.indenters.split(",") if n.strip())
+        try:
+            for n in names:
+                get_indenter(n)
+        except ValueError as exc:
+            print(f"tactile-force synth: error: --indenters: {exc}", file=sys.stderr)
+            return 2
+    options = DatasetOptions(
+        n=args.n, seed=args.seed, indenters=names, frames_per_grasp=args.frames_per_grasp,
+        edge_fraction=args.edge_fraction, no_contact_fraction=args.no_contact_fraction,
+        forces=ForceDistribution(below_fraction=args.below_fraction, above_fraction=args.above_fraction),
+        digit=VirtualDigitOptions(background=args.background, normal_to_rgb_mlp=args.normal_to_rgb_mlp),
+        progress=not args.no_progress,
+    )
+    from ..files.atomic import staged_folder
+
+    with staged_folder(args.out, "synth") as tmp:  # interrupted: no half dataset, no image without its label
+        summary = generate_dataset(tmp, options)
+    summary.root = Path(args.out)
+    print(json.dumps(summary.as_dict(), indent=1))
+    return 0

@@ -1,0 +1,703 @@
+"""Contact gate: does anything touch the gel, and can this frame be judged at all?
+
+The gate keeps a background image of the gel without contact (mean of the first N frames, or
+an explicit :meth:`ContactGate.capture_background`), compares every frame with it per pixel
+and decides contact from the masked area with hysteresis: contact turns on when the area
+reaches ``on_area_frac`` of the frame and off only when it falls below ``off_area_frac``.
+While there is no contact the background follows slow LED drift (``refresh_rate``).
+
+Resolution: the work runs on the frame shrunk by ``downscale`` (default 4: a 320x240 DIGIT
+frame becomes 80x60, the input size of the compact default model), reduced once per frame by
+the package's box average (:func:`tactile_force.edge.gate.reduce.default_reduction`: ``area-2x-steps``
+for a power-of-two factor) into a buffer allocated once; :attr:`GateResult.reduced` is that
+image, and when a bundle's network input is reduced the same way the runtime hands it to the
+model as its input (one downscale per frame). The full-resolution mask
+(the depth stage filters its full-size depth image with it) is made only when
+:attr:`GateResult.mask` is read.
+
+Trust (``GateOptions.trust``, on by default; see docs/runtime.md, "Flags"): before the
+difference, a per-channel gain and offset between frame and background is fitted robustly on
+a 20x15 thumbnail (the cells that do not look like contact), so an LED or exposure change
+does not look like contact. Then the frame is judged:
+
+- ``invalid``: the frame fits the background far better with B and R swapped (RGB order), it
+  is uniform (no gel image), or it carries a burst of pixel noise;
+- ``mismatch``: the frame no longer fits the background in a way no contact explains: a
+  sudden brightness step (gain/offset beyond ``step_level``), a shift or rotation of the
+  image (gel or camera moved), or most of the frame changed at once (another unit, another
+  session, occlusion, colour cast). Recovery: the mismatch clears as soon as a frame fits the
+  background again; the background is re-learnt from the live frame once it has been stable
+  for ``relearn_frames`` frames with no contact-like blob (after a brightness step: no blob
+  left after compensation; otherwise the change must cover the frame's borders or be a pure
+  shift/rotation). A press that grew while the gate watched is tracked as contact and never
+  re-learnt into the background.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from ..bundle.manifest import FrameReduction
+from ..checks import check_fields, expect
+from ..errors import FrameError, OptionsError
+from ..frames import TimedFrame, check_frame
+from ..typed_json import check
+from .checks import Reference, colour_swapped, dark_share, is_uniform, motion_explained, noise_verdict
+from .learning import BackgroundLearner, RelearnPolicy, refresh
+from .reduce import FrameReducer, default_reduction
+
+_log = logging.getLogger(__name__)
+
+#: Thumbnail cell size in full-resolution pixels (a 320x240 frame -> 20x15 cells).
+THUMB_CELL_PX = 16
+
+_UINT8 = np.dtype(np.uint8)
+
+
+@dataclass
+class GateOptions:
+    """Gate settings. Areas are fractions of the frame area so one setting fits any size.
+
+    background_frames: frames averaged into the background when it is learnt at start.
+    blur: odd Gaussian kernel size in pixels at the working (downscaled) resolution.
+    threshold: colour difference (0..255, max over B, G, R after the fitted per-channel gain
+        and offset) above which a pixel counts as changed.
+    on_area_frac / off_area_frac: hysteresis thresholds on the masked area.
+    min_blob_frac: connected regions smaller than this are dropped (noise specks).
+    downscale: integer factor the frame is shrunk by before the work (1 = full res; 4 = the
+        80x60 a compact model sees).
+    refresh_rate: per-frame weight of a no-contact frame in the background (0 = frozen).
+    saturation_threshold / saturation_area_frac: a changed area (difference above
+        saturation_threshold) covering this fraction of the frame reads as gel saturation.
+    convex_hull: replace each kept blob by its convex hull (the contact patch of a convex
+        indenter is convex). Off by default: a DIGIT grasps any shape. See :meth:`gelsight_mini`.
+    open_px: side (working pixels) of a morphological opening of the changed-pixel mask
+        before the blobs are found (0 = none: the blur and ``min_blob_frac`` remove specks).
+    trust: judge mismatch / invalid frames (off: the plain gate; the gain/offset
+        compensation runs either way).
+    fit_tolerance: a thumbnail cell fits the background when its residual after the fit is
+        below this (grey levels).
+    step_level: mean brightness change (grey levels) implied by the fitted gain/offset above
+        which the frame is a sudden photometric step (background_mismatch).
+    fit_floor: below this fraction of fitting cells, a change that appeared at once (no
+        contact was being tracked) is a background mismatch.
+    motion_explained: share of the residual explained by a shift/rotation of the background
+        above which the gel or camera moved.
+    noise_factor: pixel-noise level (mean |frame - blurred frame|) above noise_factor x the
+        background's + 1 grey level is a noise burst (invalid).
+    relearn_frames: stable frames (no contact-like blob) before a mismatched background is
+        re-learnt from the live frame; 0 = never (call :meth:`ContactGate.relearn`).
+    stable_level: mean thumbnail change (grey levels) between frames under which a frame is stable.
+    """
+
+    background_frames: int = field(default=5, metadata=check(ge=1))
+    blur: int = field(default=3, metadata=check(ge=1, expected="an odd integer >= 1 (Gaussian kernel, pixels)"))
+    threshold: float = field(default=10.0, metadata=check(gt=0, lt=255))
+    on_area_frac: float = field(default=0.006, metadata=check(ge=0, lt=1))
+    off_area_frac: float = field(default=0.003, metadata=check(ge=0, lt=1))
+    min_blob_frac: float = field(default=0.0015, metadata=check(ge=0, lt=1))
+    downscale: int = field(default=4, metadata=check(ge=1))
+    refresh_rate: float = field(default=0.02, metadata=check(ge=0, lt=1))
+    saturation_threshold: float = field(default=60.0, metadata=check(gt=0))
+    saturation_area_frac: float = field(default=0.25, metadata=check(gt=0, le=1))
+    convex_hull: bool = False
+    open_px: int = field(default=0, metadata=check(ge=0, expected="an integer >= 0 (0 = no opening)"))
+    trust: bool = True
+    fit_tolerance: float = field(default=8.0, metadata=check(gt=0))
+    step_level: float = field(default=10.0, metadata=check(gt=0))
+    fit_floor: float = field(default=0.35, metadata=check(gt=0, lt=1))
+    motion_explained: float = field(default=0.35, metadata=check(gt=0, lt=1))
+    noise_factor: float = field(default=2.2, metadata=check(gt=0))
+    relearn_frames: int = field(default=30, metadata=check(ge=0, expected="an integer >= 0 (0 = never)"))
+    stable_level: float = field(default=2.0, metadata=check(gt=0))
+
+    @classmethod
+    def gelsight_mini(cls, **overrides: object) -> GateOptions:
+        """Settings for a GelSight Mini (480x640): its LEDs make a stronger colour halo
+        around the contact than a DIGIT's, so a higher threshold, convex hulls (ball and
+        other convex indenters) and a finer working resolution (x2). On the 16 labelled ball
+        presses (shared data): IoU with the contact circles mean 0.65 (see docs/runtime.md)."""
+        base: dict[str, object] = {"threshold": 28.0, "convex_hull": True, "downscale": 2, "blur": 5, "open_px": 3}
+        return cls(**{**base, **overrides})  # type: ignore[arg-type]
+
+    def __post_init__(self) -> None:
+        self.validate()
+
+    def validate(self) -> None:
+        """Raise :class:`~.errors.ArgumentTypeError` (a TypeError) or :class:`~.errors.OptionsError`
+        (a ValueError) naming the first bad field; run at construction, and again by
+        :class:`ContactGate` (fields may have been changed since)."""
+        check_fields(self)
+        if self.blur % 2 == 0:
+            raise OptionsError(f"GateOptions.blur={self.blur}: expected an odd integer >= 1 (Gaussian kernel, pixels)")
+        if not self.off_area_frac <= self.on_area_frac:
+            raise OptionsError(f"GateOptions.on_area_frac={self.on_area_frac}, off_area_frac={self.off_area_frac}: "
+                               "expected 0 <= off_area_frac <= on_area_frac < 1")
+
+
+class GateResult:
+    """One gate decision.
+
+    contact: gate open (after hysteresis). area_px: masked area in full-resolution pixels;
+    area_frac: the same as a fraction of the frame. saturation_seen: a large strongly changed
+    area. background_ready: False while the background is still being learnt (then contact
+    is False). mismatch: why the frame does not fit the background ("" = it fits; then
+    contact is False). invalid: why the frame cannot be judged at all (colour order, uniform,
+    noise; "" = fine). deformation: mean compensated colour difference inside the mask (grey
+    levels; 0 without contact). thumb: the frame's 20x15x3 uint8 thumbnail (a buffer the
+    gate reuses). gain / offset: the fitted per-channel (B, G, R) photometric change.
+
+    mask (HxW uint8 0/255 at the frame's full resolution), centroid ((x, y) pixels or None)
+    and bbox ((x, y, w, h) pixels or None) are computed on first access from the gate's
+    working mask, so the hot path of an RGBmod scene, which reads neither, skips the
+    upscale and the moments. The mask is a buffer the gate reuses: read or copy it before
+    the next ``update``.
+    """
+
+    __slots__ = ("contact", "area_px", "area_frac", "saturation_seen", "background_ready", "mismatch", "invalid",
+                 "deformation", "thumb", "gain", "offset", "reduced", "_small", "_k", "_exact", "_full", "_mask_ready",
+                 "_geometry")
+
+    def __init__(self, contact: bool, area_px: int, saturation_seen: bool, small: np.ndarray, full: np.ndarray,
+                 k: int, exact: bool, background_ready: bool = True) -> None:
+        self.contact = contact
+        self.area_px = area_px
+        self.area_frac = area_px / float(full.shape[0] * full.shape[1])
+        self.saturation_seen = saturation_seen
+        self.background_ready = background_ready
+        self.mismatch = ""
+        self.invalid = ""
+        self.deformation = 0.0
+        self.thumb: np.ndarray | None = None
+        #: the frame reduced by the gate's :attr:`ContactGate.reduction` (H/k x W/k x 3 uint8, a
+        #: buffer the gate reuses: the image the model reads when its reduction is the same)
+        self.reduced: np.ndarray | None = None
+        self.gain: tuple[float, float, float] = (1.0, 1.0, 1.0)
+        self.offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+        self._small, self._full, self._k, self._exact = small, full, k, exact
+        self._mask_ready = small is full
+        self._geometry: tuple | None = None
+
+    @property
+    def mask_computed(self) -> bool:
+        """True once the full-resolution mask exists (it is made on first read of ``mask``)."""
+        return self._mask_ready
+
+    @property
+    def reduced_mask(self) -> np.ndarray:
+        """The gate's working mask (H/k x W/k uint8 0/255, a buffer it reuses), the mask of
+        :attr:`reduced`: what a depth stage at the network resolution reads (``mask`` is this
+        one upscaled by nearest neighbour)."""
+        return self._small
+
+    @property
+    def mask(self) -> np.ndarray:
+        if not self._mask_ready:
+            cv2.resize(self._small, (self._full.shape[1], self._full.shape[0]), dst=self._full,
+                       interpolation=cv2.INTER_NEAREST)
+            self._mask_ready = True
+        return self._full
+
+    def _measure(self) -> tuple:
+        if self._geometry is None:
+            if not self.area_px:
+                self._geometry = (None, None)
+            else:
+                # From the small mask when the factor divides the frame (the nearest-neighbour
+                # upscale maps every small pixel to a k x k block: exact), else the full mask.
+                src, k = (self._small, self._k) if self._exact else (self.mask, 1)
+                m = cv2.moments(src, binaryImage=True)
+                off = (k - 1) / 2.0
+                x, y, w, h = cv2.boundingRect(src)
+                self._geometry = ((k * m["m10"] / m["m00"] + off, k * m["m01"] / m["m00"] + off),
+                                  (int(x * k), int(y * k), int(w * k), int(h * k)))
+        return self._geometry
+
+    @property
+    def centroid(self) -> tuple[float, float] | None:
+        return self._measure()[0]
+
+    @property
+    def bbox(self) -> tuple[int, int, int, int] | None:
+        return self._measure()[1]
+
+    def __repr__(self) -> str:
+        return (f"GateResult(contact={self.contact}, area_px={self.area_px}, saturation_seen={self.saturation_seen}, "
+                f"background_ready={self.background_ready}, mismatch={self.mismatch!r}, invalid={self.invalid!r})")
+
+
+class ContactGate:
+    """Per-sensor contact gate; one instance per sensor, not thread-safe."""
+
+    def __init__(self, options: GateOptions | None = None) -> None:
+        expect(options, (GateOptions, type(None)), "ContactGate.options", "a GateOptions or None (the defaults)")
+        self.options = options or GateOptions()
+        self.options.validate()
+        self._bg: np.ndarray | None = None  # blurred background, float32, working res
+        self._bg_thumb: np.ndarray | None = None  # its thumbnail, float32
+        self._ref: Reference | None = None
+        self._learner = BackgroundLearner()  # the first live frames, while the background is learnt
+        self._relearned_now = False
+        self._shape: tuple[int, int, int] | None = None
+        self._contact = False
+        # The per-channel photometric model (frame = gain x background + offset) as the 3 x 4
+        # matrix cv2.transform applies; _gain (its diagonal) and _offset (its last column) are
+        # views into it, so the fit writes the matrix directly.
+        self._M = np.zeros((3, 4), np.float32)
+        self._gain = self._M.reshape(-1)[::5]
+        self._offset = self._M[:, 3]
+        self._gain[:] = 1.0
+        self._level: tuple[float, float, float] | None = None  # mean colour of _bg_thumb (cached)
+        self._bg_noise = 1.0
+        self._policy = RelearnPolicy(self.options)  # the mismatch state and when to re-learn
+        self._given = 0  # live frames still to check against a background given at start
+        self._given_origin = ""
+        self._reduced_for: np.ndarray | None = None  # the frame reduce() was called for
+        self._reduction: FrameReduction | None = None
+        self.relearned = 0  # how many times the background was re-learnt after a mismatch
+        #: the first full-resolution frame given to :meth:`capture_background` (HxWx3 uint8 BGR;
+        #: None while the background is learnt from live frames): the runtime checks it once for
+        #: a press against the bundle's no-contact reference (edge/gate/given_background.py)
+        self.background_image: np.ndarray | None = None
+        self.background_origin = ""
+
+    # -- background ---------------------------------------------------------------------
+    @property
+    def background_ready(self) -> bool:
+        return self._bg is not None
+
+    @property
+    def reduction(self) -> FrameReduction:
+        """How the gate reduces each frame before judging it (method and factor ``downscale``);
+        the runtime hands :attr:`GateResult.reduced` to a model whose network input is
+        reduced the same way."""
+        k = int(self.options.downscale)
+        red = self._reduction
+        if red is None or red.factor != k:  # made once (the runtime asks for it every frame)
+            red = self._reduction = default_reduction(k)
+        return red
+
+    @property
+    def frame_shape(self) -> tuple[int, int, int] | None:
+        """H x W x 3 the gate works at, fixed by the first background."""
+        return self._shape
+
+    @property
+    def state(self) -> str:
+        """'learning', 'ok' or 'mismatch: <reason>'."""
+        if self._bg is None:
+            return "learning"
+        reason = self._policy.reason
+        return f"mismatch: {reason}" if reason else "ok"
+
+    def capture_background(self, frames: Iterable[np.ndarray | TimedFrame], origin: str = "") -> None:
+        """Set the background to the mean of ``frames`` (HxWx3 uint8 BGR, no contact).
+
+        origin: where the frames came from (e.g. the scene's background file); when given,
+        the first live frames are checked against it and a mismatch names it."""
+        learner = BackgroundLearner()
+        first: np.ndarray | None = None
+        for i, f in enumerate(frames):
+            arr = self._as_array(f, i)
+            first = arr if first is None else first
+            w, t = self._prepare(arr)
+            learner.add(w, t, self._noise(w))
+        if first is None:
+            raise FrameError("capture_background: no frames given; expected at least one no-contact frame")
+        self._set_background(*learner.mean())
+        self._given, self._given_origin = (5, origin) if origin else (0, "")
+        assert first is not None
+        self.background_image, self.background_origin = first.copy(), origin
+
+    def reset(self) -> None:
+        """Forget the background; the next ``background_frames`` frames are learnt again."""
+        self._bg = None
+        self._bg_thumb = None
+        self._ref = None
+        self._learner.clear()
+        self._contact = False
+        self._policy.clear()
+
+    def relearn(self, frame: np.ndarray | TimedFrame) -> None:
+        """Take ``frame`` (no contact: the gripper is open) as the new background now."""
+        self.capture_background([frame])
+
+    # -- per frame ----------------------------------------------------------------------
+    def reduce(self, frame: np.ndarray | TimedFrame) -> np.ndarray:
+        """The frame's one downscale, now: the reduced image (H/k x W/k x 3 uint8, the gate's
+        buffer, valid until the next frame). A following :meth:`update` of the same array
+        judges this image without reducing the frame again (the runtime checks the frame's
+        exposure on it first)."""
+        arr = self._as_array(frame, None)
+        self._reduce(arr)
+        self._reduced_for = arr
+        return self._small
+
+    def update(self, frame: np.ndarray | TimedFrame) -> GateResult:
+        """Gate one frame (HxWx3 uint8 BGR, same size as the background)."""
+        arr = frame if frame is self._reduced_for else self._as_array(frame, None)  # reduce() checked it
+        work, thumb = self._prepare(arr)
+        o = self.options
+        if self._bg is None:
+            learner = self._learner
+            if learner.add(work, thumb, self._noise(work)) >= o.background_frames:
+                self._set_background(*learner.mean())
+                learner.clear()
+            self._mask[:] = 0
+            r = GateResult(False, 0, False, self._mask, self._full_mask, int(o.downscale), self._exact,
+                           background_ready=False)
+            r._mask_ready = False
+            r.thumb = thumb
+            r.reduced = self._small
+            return r
+
+        self._fit_thumb(thumb)
+        y = self._y
+        self._changed(work)
+        area_small, saturation_seen, deformation = self._blobs()
+
+        s = int(o.downscale)
+        k = s if self._exact else 1
+        if s > 1 and self._exact:
+            area = area_small * s * s
+        elif s > 1:  # the factor does not divide the frame: count on the full-resolution mask
+            cv2.resize(self._mask, (arr.shape[1], arr.shape[0]), dst=self._full_mask, interpolation=cv2.INTER_NEAREST)
+            area = cv2.countNonZero(self._full_mask)
+        else:
+            area = area_small
+        frac = area / self._full_area
+
+        was_contact = self._contact
+        if self._contact:
+            self._contact = frac >= o.off_area_frac
+        else:
+            self._contact = frac >= o.on_area_frac
+
+        invalid = mismatch = ""
+        self._relearned_now = False
+        if o.trust:
+            invalid, mismatch = self._judge(y, work, thumb, frac, was_contact)
+        if self._relearned_now:  # this frame is the new background: no contact in it
+            self._contact = False
+            area, saturation_seen, deformation = 0, False, 0.0
+            self._mask[:] = 0
+        elif invalid or mismatch:
+            self._contact = was_contact and not mismatch and not invalid
+        elif not self._contact and o.refresh_rate > 0:
+            assert self._bg_thumb is not None and self._ref is not None
+            refresh(self._bg, self._bg_thumb, work, thumb, o.refresh_rate, self._ref)
+            self._level = None
+
+        small = self._mask if (s > 1 and self._exact) else self._full_mask
+        full = self._mask if s == 1 else self._full_mask
+        contact = self._contact and not mismatch and not invalid
+        r = GateResult(contact, int(area), bool(saturation_seen), small if s > 1 else full, full, k, self._exact)
+        if s > 1 and not self._exact:
+            r._mask_ready = True
+        r.mismatch, r.invalid, r.deformation, r.thumb = mismatch, invalid, float(deformation), thumb
+        r.reduced = self._small
+        r.gain = tuple(self._gain.tolist())
+        r.offset = tuple(self._offset.tolist())
+        return r
+
+    # -- stages of update (separate so benchmarks/one_downscale.py can time each) --------
+    def _fit_thumb(self, thumb: np.ndarray) -> None:
+        """The photometric fit (gain/offset) of the frame's thumbnail to the background's."""
+        np.copyto(self._thumb_f, thumb, casting="unsafe")
+        self._fit(final=self.options.trust)
+
+    def _changed(self, work: np.ndarray) -> None:
+        """The changed-pixel mask into ``_mask`` and |frame - model| into ``_ad``. Model of the
+        frame = background x gain + offset per channel (uint8), then the max over B, G, R of
+        |frame - model| > threshold <=> not all channels within [0, t]."""
+        assert self._bg is not None
+        cv2.transform(self._bg, self._M, dst=self._model_f)
+        cv2.convertScaleAbs(self._model_f, dst=self._model)
+        cv2.absdiff(work, self._model, dst=self._ad)
+        cv2.inRange(self._ad, self._zero, self._thr, dst=self._mask)
+        cv2.bitwise_not(self._mask, dst=self._mask)
+
+    def _blobs(self) -> tuple[int, bool, float]:
+        """Contact blobs of the changed mask, filled, into ``_mask``: (area in working
+        pixels, gel saturation seen, deformation in grey levels)."""
+        if not cv2.countNonZero(self._mask):
+            return 0, False, 0.0
+        o = self.options
+        if self._kernel is not None:
+            cv2.morphologyEx(self._mask, cv2.MORPH_OPEN, self._kernel, dst=self._mask)
+        # Keep blobs big enough to be contact, filled (a ball's flat top looks like background).
+        contours, _ = cv2.findContours(self._mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+        self._mask.fill(0)
+        keep = [c for c in contours if cv2.contourArea(c) >= self._min_blob]
+        if not keep:
+            return 0, False, 0.0
+        if o.convex_hull:
+            keep = [cv2.convexHull(c) for c in keep]
+        cv2.drawContours(self._mask, keep, -1, 255, thickness=cv2.FILLED)
+        area_small = cv2.countNonZero(self._mask)
+        limit = o.saturation_area_frac * self._work_area
+        saturation_seen = self._strong_area_reaches(limit) if area_small >= limit else False  # else it cannot be
+        return area_small, saturation_seen, max(cv2.mean(self._ad, mask=self._mask)[:3])
+
+    def _strong_area_reaches(self, limit: float) -> bool:
+        """True when the pixels with a channel of ``_ad`` above ``saturation_threshold`` cover
+        ``limit`` working pixels or more. The changed channel values are counted first (one
+        threshold + countNonZero): a pixel holds 1 to 3 of them, so that count alone decides
+        unless it lies within [limit, 3 x limit); then the pixels are counted exactly."""
+        ub = self._sat_level
+        if ub >= 0:
+            cv2.threshold(self._ad, ub, 255, cv2.THRESH_BINARY, dst=self._ad_strong)
+            values = cv2.countNonZero(self._ad_strong_flat)
+            if values < limit:
+                return False
+            if values >= 3 * limit:
+                return True
+        cv2.inRange(self._ad, self._zero, self._sat, dst=self._strong)
+        return self._work_area - cv2.countNonZero(self._strong) >= limit
+
+    # -- trust ----------------------------------------------------------------------------
+    def _residual(self) -> int:
+        """|thumbnail - (gain x background + offset)| per cell and channel into ``_tres``, the
+        cells within ``fit_tolerance`` on every channel into ``_inl``; returns their count."""
+        assert self._bg_thumb is not None
+        cv2.transform(self._bg_thumb, self._M, dst=self._tmodel)
+        cv2.absdiff(self._thumb_f, self._tmodel, dst=self._tres)
+        cv2.inRange(self._tres, self._zero, self._tol, dst=self._inl)
+        return cv2.countNonZero(self._inl)
+
+    def _fit(self, final: bool = True) -> None:
+        """Per-channel gain/offset (frame = gain x background + offset), least squares over
+        the thumbnail cells that fit the previous model (all cells when fewer than half do:
+        after a sudden change); with ``final`` also ``_inl`` (cells that fit now) and
+        ``_fit_frac`` for the judging."""
+        bg = self._bg_thumb
+        assert bg is not None
+        cells = self._inl.size
+        mask = self._inl if self._residual() >= cells // 2 else None
+        cv2.multiply(bg, self._thumb_f, dst=self._txy)
+        cv2.meanStdDev(bg, self._mx, self._sx, mask)
+        my = cv2.mean(self._thumb_f, mask=mask)
+        mxy = cv2.mean(self._txy, mask=mask)
+        M = self._M
+        for c, m, s in zip(range(3), self._mx[:, 0].tolist(), self._sx[:, 0].tolist()):
+            var = s ** 2
+            g = (mxy[c] - m * my[c]) / var if var > 1e-3 else 0.0
+            M[c, c] = g
+            M[c, 3] = my[c] - g * m
+        if final:
+            self._fit_frac = self._residual() / cells
+
+    def _judge(self, y: np.ndarray, work: np.ndarray, thumb: np.ndarray, frac: float,
+               was_contact: bool) -> tuple[str, str]:
+        """(invalid reason, mismatch reason) for this frame; updates the mismatch state and
+        re-learns the background when the recovery policy allows."""
+        o = self.options
+        ref = self._ref
+        assert ref is not None
+        policy = self._policy
+        assert self._bg_thumb is not None
+        if self._level is None:  # the background thumbnail's mean colour: re-made when it changes
+            self._level = cv2.mean(self._bg_thumb)[:3]
+        l0, l1, l2 = self._level
+        gain, offset = self._gain.tolist(), self._offset.tolist()
+        g0, g1, g2 = gain
+        step = max(abs((g0 - 1.0) * l0 + offset[0]), abs((g1 - 1.0) * l1 + offset[1]),
+                   abs((g2 - 1.0) * l2 + offset[2]))
+        global_change = self._fit_frac < o.fit_floor
+        contrast = max(abs(g0 - 1.0), abs(g1 - 1.0), abs(g2 - 1.0))
+        photometric = step > o.step_level or contrast > 0.5
+        # Pixel noise: mean |frame - blurred| against the background's level. Measured on every
+        # frame: the box-averaged image the rest of the gate judges hides a noise burst.
+        noise = self._noise(work)
+        burst, invalid = noise_verdict(noise, self._bg_noise, gain, o.noise_factor)
+        suspicious = global_change or photometric or frac > 0 or policy.reason or burst
+        if not suspicious:
+            policy.clear()
+            return "", ""
+        reason, kind = "", ""
+        if not invalid and (global_change or photometric):
+            if is_uniform(self._thumb_f):
+                invalid = "uniform frame: no gel image (LEDs off, lens covered, a test pattern or a stalled camera?)"
+            # A wrong colour order shows from the first frame on, never inside a tracked contact.
+            elif global_change and not was_contact and colour_swapped(y, ref.x, o.fit_tolerance, self._fit_frac):
+                invalid = ("colour order: the frame fits the background far better with B and R swapped; the source "
+                           "delivers RGB, the package expects BGR (OpenCV order): convert with frame[..., ::-1]")
+        if not invalid:
+            # A change that appears at once (no contact tracked) is checked for motion and
+            # occlusion; a tracked contact is not re-checked every frame.
+            onset = not was_contact or global_change
+            explained = (motion_explained(self._thumb_f, self._tmodel, self._tr, ref)
+                         if onset and self._fit_frac < 0.98 else 0.0)
+            if explained > o.motion_explained:
+                reason, kind = (f"the gel or camera moved: {100 * explained:.0f} % of the difference is a shift or "
+                                "rotation of the background", "motion")
+            elif onset and frac > 0 and dark_share(self._thumb_f, ref.dark(), self._tcmp, self._tdark) > 0.04:
+                reason, kind = ("part of the gel is covered or dark (occlusion, a cable or finger in view, "
+                                "a failed LED?)", "global")
+            elif global_change and not was_contact:
+                reason, kind = (f"the frame no longer fits the background: only {100 * self._fit_frac:.0f} % of it "
+                                "fits (another sensor unit or session, occlusion, colour cast?)", "global")
+            elif photometric and self._fit_frac >= o.fit_floor:
+                g = "/".join(f"{v:.2f}" for v in gain)
+                reason, kind = (f"sudden brightness step of {step:.0f} grey levels (LED/exposure: gain B/G/R {g})",
+                                "photometric")
+            elif policy.reason and self._fit_frac >= 0.8 and not photometric:
+                policy.clear()
+        if self._given and reason:
+            reason = (f"the background given at start ({self._given_origin}) does not fit the live frames: {reason}; "
+                      "remove it from the scene to learn the background from the first frames, or record a new one")
+        if self._given:
+            self._given -= 1
+        if reason:
+            policy.enter(reason, kind)
+            if policy.due(thumb, frac, kind, self._inl):
+                self._relearn_live()
+            return invalid, policy.reason
+        if policy.reason and not invalid:
+            # In a mismatch state frames that do not show the reason any more but do not fit
+            # well either (fit_frac < 0.8) stay mismatched.
+            if policy.due(thumb, frac, policy.kind, self._inl):
+                self._relearn_live()
+            return invalid, policy.reason
+        return invalid, ""
+
+    def _relearn_live(self) -> None:
+        """The recovery policy (edge/gate/learning.py) says re-learn: the live frame is the
+        new background now."""
+        reason = self._policy.reason
+        self.capture_background([self._last_frame])
+        self.relearned += 1
+        self._relearned_now = True
+        _log.warning("contact gate: background re-learnt from the live frame after %d stable frames (%s)",
+                     self.options.relearn_frames, reason)
+
+    def _noise(self, work: np.ndarray) -> float:
+        """Pixel-noise level of the frame just prepared: mean |subsampled frame - blurred| (grey
+        levels). A box average hides pixel noise (a k x k average divides it by k), so above x2
+        the level is measured on one pixel per k x k block of the full frame (as the gate did
+        before the box average), into buffers allocated once."""
+        if self._sub is None:
+            cv2.absdiff(self._small, work, dst=self._noise_d)
+        else:
+            cv2.resize(self._last_frame, (self._sub.shape[1], self._sub.shape[0]), dst=self._sub,
+                       interpolation=cv2.INTER_NEAREST)
+            b = self.options.blur
+            if b > 1:
+                cv2.GaussianBlur(self._sub, (b, b), 0, dst=self._sub_blur)
+            else:
+                np.copyto(self._sub_blur, self._sub)
+            cv2.absdiff(self._sub, self._sub_blur, dst=self._noise_d)
+        return float(max(cv2.mean(self._noise_d)[:3]))
+
+    def _set_background(self, bg: np.ndarray, thumb: np.ndarray, noise: float) -> None:
+        self.background_image, self.background_origin = None, ""  # capture_background sets them again
+        self._bg = bg
+        self._bg_thumb = thumb
+        self._level = None
+        self._ref = Reference(thumb)
+        self._gain[:] = 1.0
+        self._offset[:] = 0.0
+        self._contact = False
+        self._policy.clear()
+        self._bg_noise = max(0.5, noise)
+
+    # -- internals ----------------------------------------------------------------------
+    def _as_array(self, frame: np.ndarray | TimedFrame, i: int | None) -> np.ndarray:
+        arr = frame.frame if isinstance(frame, TimedFrame) else frame
+        if (type(arr) is np.ndarray and arr.dtype is _UINT8 and arr.shape == self._shape
+                and arr.flags.c_contiguous):  # the usual frame: what check_frame would pass as it is
+            self._last_frame = arr
+            return arr
+        name = "gate frame" if i is None else f"background frame {i}"
+        arr = check_frame(arr, name=name, shape=None)
+        if self._shape is None:
+            self._allocate(arr.shape)
+        elif arr.shape != self._shape:
+            raise FrameError(f"{name}: shape {arr.shape}; this gate's background is {self._shape} "
+                             "(call reset() or use one gate per sensor)")
+        self._last_frame = arr
+        return arr
+
+    def _allocate(self, shape: tuple[int, int, int]) -> None:
+        o = self.options
+        h, w = shape[:2]
+        s = int(o.downscale)
+        wh, ww = max(1, h // s), max(1, w // s)
+        th, tw = max(2, h // THUMB_CELL_PX), max(2, w // THUMB_CELL_PX)
+        self._shape = (int(shape[0]), int(shape[1]), int(shape[2]))
+        self._small = np.empty((wh, ww, 3), np.uint8)
+        self._work = np.empty((wh, ww, 3), np.uint8)
+        self._thumb = np.empty((th, tw, 3), np.uint8)
+        self._thumb_f = np.empty((th, tw, 3), np.float32)
+        self._tmodel = np.empty((th, tw, 3), np.float32)
+        self._tres = np.empty((th, tw, 3), np.float32)
+        self._tr = np.empty((th, tw, 3), np.float32)
+        self._txy = np.empty((th, tw, 3), np.float32)
+        self._inl = np.full((th, tw), 255, np.uint8)
+        self._tcmp = np.empty((th, tw, 3), np.uint8)  # the occlusion check's buffers
+        self._tdark = np.empty((th, tw), np.uint8)
+        self._tol = np.full(3, float(o.fit_tolerance), np.float64)
+        self._mx = np.empty((3, 1), np.float64)  # meanStdDev outputs, reused
+        self._sx = np.empty((3, 1), np.float64)
+        self._y = self._thumb_f.reshape(-1, 3)  # a view: the thumbnail's cells x B, G, R
+        self._fit_frac = 1.0
+        self._model_f = np.empty((wh, ww, 3), np.float32)
+        self._model = np.empty((wh, ww, 3), np.uint8)
+        self._ad = np.empty((wh, ww, 3), np.uint8)
+        self._zero = np.zeros(3, np.float64)
+        self._thr = np.full(3, float(o.threshold), np.float64)
+        self._sat = np.full(3, float(o.saturation_threshold), np.float64)
+        self._exact = s == 1 or (h % s == 0 and w % s == 0)
+        self._mask = np.empty((wh, ww), np.uint8)
+        self._strong = np.empty((wh, ww), np.uint8)
+        self._ad_strong = np.empty((wh, ww, 3), np.uint8)
+        self._ad_strong_flat = self._ad_strong.reshape(wh, ww * 3)  # a view: one value per channel
+        # inRange's upper bound on uint8 is the threshold rounded half to even (saturate_cast):
+        # the same integer makes cv2.threshold (value > ub) agree with it exactly.
+        self._sat_level = min(255, round(float(o.saturation_threshold)))
+        self._full_mask = self._mask if s == 1 else np.zeros((h, w), np.uint8)
+        self._work_area = wh * ww
+        self._full_area = h * w
+        self._min_blob = o.min_blob_frac * self._work_area
+        self._kernel = (cv2.getStructuringElement(cv2.MORPH_RECT, (o.open_px, o.open_px)) if o.open_px > 1
+                        else None)
+        # The one downscale per frame: an exact box average (edge/gate/reduce.py) when the factor
+        # divides the frame (what a compact bundle's network input is), else INTER_AREA.
+        self._reducer = FrameReducer(default_reduction(s), self._shape) if self._exact and s > 1 else None
+        # Pixel noise is judged on one pixel per block (see _noise): buffers for it above x2.
+        self._sub = np.empty((wh, ww, 3), np.uint8) if self._reducer is not None and s > 2 else None
+        self._sub_blur = np.empty((wh, ww, 3), np.uint8)
+        self._noise_d = np.empty((wh, ww, 3), np.uint8)
+
+    def _reduce(self, arr: np.ndarray) -> None:
+        """The one downscale into ``_small``."""
+        s = int(self.options.downscale)
+        if self._reducer is not None:
+            self._reducer(arr, out=self._small)
+        elif s > 1:
+            cv2.resize(arr, (self._small.shape[1], self._small.shape[0]), dst=self._small,
+                       interpolation=cv2.INTER_LINEAR if s <= 2 else cv2.INTER_NEAREST)
+        else:
+            np.copyto(self._small, arr)
+
+    def _prepare(self, arr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The frame's one downscale (an exact box average, edge/gate/reduce.py, into ``_small``;
+        a factor that does not divide the frame: INTER_LINEAR at x2, else one pixel per block)
+        + blur into the uint8 working buffer, and its thumbnail; all buffers are reused."""
+        if self._reduced_for is not arr:
+            self._reduce(arr)
+        self._reduced_for = None
+        src = self._small
+        b = self.options.blur
+        if b > 1:
+            cv2.GaussianBlur(src, (b, b), 0, dst=self._work)
+        else:
+            np.copyto(self._work, src)
+        cv2.resize(self._work, (self._thumb.shape[1], self._thumb.shape[0]), dst=self._thumb,
+                   interpolation=cv2.INTER_LINEAR)
+        return self._work, self._thumb

@@ -1,0 +1,115 @@
+"""The grabber threads of :class:`~tactile_force.edge.runtime.loop.ForceRuntime`: one reader thread
+per sensor, each holding at most one read ahead (a one-slot hand-over), so one sensor never
+waits for the other's camera. :func:`read_once` is one timed ``read()`` of a source (the
+loop's own thread uses it when there are no grabbers)."""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Protocol, TypeVar
+
+from ..errors import SourceError
+from ..frames import FrameSource, TimedFrame
+
+
+class GrabbedSensor(Protocol):
+    """What a grabber needs from a sensor (:class:`~tactile_force.edge.runtime.loop.Sensor`)."""
+
+    @property
+    def name(self) -> str: ...
+
+    @property
+    def source(self) -> FrameSource: ...
+
+
+S = TypeVar("S", bound=GrabbedSensor)
+
+@dataclass(slots=True)
+class Read:
+    """One read() of a source: the frame (None at the end of the stream), or the SourceError
+    it raised; t0 / t1: clock before / after the call (ns)."""
+
+    tf: TimedFrame | None
+    error: SourceError | None
+    t0: int
+    t1: int
+
+
+def read_once(source: FrameSource, clock: Callable[[], int]) -> Read:
+    """One ``source.read()`` timed with ``clock`` (ns); a SourceError is returned, not raised
+    (anything else propagates)."""
+    t0 = clock()
+    try:
+        tf = source.read()
+    except SourceError as exc:
+        return Read(None, exc, t0, clock())
+    return Read(tf, None, t0, clock())
+
+
+class Grabbers:
+    """One reader thread per sensor, each holding at most one read ahead (a one-slot
+    hand-over: lossless for file sources; live cameras drop old frames themselves).
+    :meth:`take` waits until at least one live sensor's read is there and takes every one
+    that is; a source raising anything but SourceError re-raises in the loop's thread."""
+
+    def __init__(self, sensors: Sequence[GrabbedSensor], clock: Callable[[], int]) -> None:
+        self._cond = threading.Condition()
+        self._slots: dict[str, Read | None] = {s.name: None for s in sensors}
+        self._failure: BaseException | None = None
+        self._stop = False
+        self._threads = [threading.Thread(target=self._loop, args=(s, clock), name=f"read-{s.name}", daemon=True)
+                         for s in sensors]
+        for t in self._threads:
+            t.start()
+
+    def _loop(self, s: GrabbedSensor, clock: Callable[[], int]) -> None:
+        while True:
+            try:
+                r = read_once(s.source, clock)
+            except BaseException as exc:  # noqa: BLE001 - handed to the loop's thread
+                with self._cond:
+                    self._failure = exc
+                    self._cond.notify_all()
+                return
+            with self._cond:
+                while self._slots[s.name] is not None and not self._stop:
+                    self._cond.wait()
+                if self._stop:
+                    return
+                self._slots[s.name] = r
+                self._cond.notify_all()
+            if r.tf is None:  # end of the stream or a source error: this sensor is done
+                return
+
+    def wait_all(self, live: Sequence[S], timeout_s: float) -> bool:
+        """Wait up to ``timeout_s`` until every live sensor's read is there; True if it is."""
+        with self._cond:
+            return self._cond.wait_for(lambda: self._failure is not None
+                                       or all(self._slots[s.name] is not None for s in live), timeout_s)
+
+    def take(self, live: Sequence[S]) -> list[tuple[S, Read]]:
+        """Every live sensor's waiting read (at least one), in sensor order."""
+        with self._cond:
+            self._cond.wait_for(lambda: self._failure is not None
+                                or any(self._slots[s.name] is not None for s in live))
+            if self._failure is not None:
+                raise self._failure
+            got = []
+            for s in live:
+                r = self._slots[s.name]
+                if r is not None:
+                    got.append((s, r))
+                    self._slots[s.name] = None
+            self._cond.notify_all()
+            return got
+
+    def stop(self, timeout_s: float = 1.0) -> None:
+        """Let every thread end (a thread blocked in ``read()`` ends once it returns) and
+        join each for up to ``timeout_s`` seconds."""
+        with self._cond:
+            self._stop = True
+            self._cond.notify_all()
+        for t in self._threads:
+            t.join(timeout_s)
