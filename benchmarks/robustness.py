@@ -257,7 +257,7 @@ def probe_label(root: Path, data: bytes, *, calib: bool = True) -> Verdict:
     """One label file through every reader: read_force_file, the dataset reader, the replay
     source (must warn once and yield truth None, never die) and quantize's --calib reader."""
     from tactile_force.edge.data.dataset import AuthorsDataset, read_force_file
-    from tactile_force.edge.sources.files import ReplayFolderSource
+    from tactile_force.edge.sources import ReplayFolderSource
 
     want = expected_label(data)
     bad = want is None
@@ -1008,7 +1008,7 @@ def _record_cli_with_fakes(argv: list[str]) -> tuple[int, str, str]:
 
 def probe_replay_vanish(folder: Path, paced: bool) -> Verdict:
     """A replay folder deleted mid-run: the next read raises SourceError (never idles)."""
-    from tactile_force.edge.sources.files import ReplayFolderSource
+    from tactile_force.edge.sources import ReplayFolderSource
 
     root = folder / f"vanish_{paced}"
     shutil.rmtree(root, ignore_errors=True)

@@ -107,7 +107,14 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time these load lazily
     from .outputs import CsvWriter, JsonlWriter, StdoutWriter
     from .runtime.loop import ForceRuntime, RuntimeOptions, RuntimeStats, Sensor, plan_stages
     from .scene import Scene, build_scene, default_bundle_path, describe_scene, load_scene, shipped_bundles
-    from .sources.files import CameraSource, ReplayFolderSource, StreamLost, VideoFileSource, load_background, open_v4l2
+    from .sources import (
+        CameraSource,
+        ReplayFolderSource,
+        StreamLost,
+        VideoFileSource,
+        load_background,
+        open_v4l2,
+    )
     from .synthetic import (
         ContactSpec,
         DatasetOptions,

@@ -1,7 +1,7 @@
 """DIGIT as a frame source: find it by serial, configure it, survive it disappearing.
 
 Capture itself (opening through V4L2, size/fps, orientation, VGA halving, corrupt-frame
-counting) is :class:`~tactile_force.edge.sources.files.CameraSource`; this module adds what is
+counting) is :class:`~tactile_force.edge.sources.CameraSource`; this module adds what is
 DIGIT-specific: serial lookup through sysfs, LED intensity, reconnect policy, USB reset.
 
 Frames come out in the package convention: HxWx3 uint8 BGR, portrait 320 rows x 240
@@ -23,7 +23,7 @@ import cv2
 import numpy as np
 from tactile_force.edge.errors import SourceError, require
 from tactile_force.edge.frames import TimedFrame
-from tactile_force.edge.sources.files import MAX_CORRUPT_IN_ROW, CameraSource, Capture, StreamLost, open_v4l2
+from tactile_force.edge.sources import MAX_CORRUPT_IN_ROW, CameraSource, Capture, StreamLost, open_v4l2
 
 from .discovery import AttachedDevice, discover, find_digit, locate_sensor
 from .sysfs import UsbDeviceInfo
@@ -98,7 +98,7 @@ def reset_usb_device(info: UsbDeviceInfo, find: Callable | None = None) -> None:
 class DigitSource(CameraSource):
     """Frames from one DIGIT; reconnects with backoff when the stream dies.
 
-    A :class:`~tactile_force.edge.sources.files.CameraSource` reading in the caller's thread
+    A :class:`~tactile_force.edge.sources.CameraSource` reading in the caller's thread
     (every frame returned, ``meta['sensor']`` = name), opened at the DIGIT's video node.
     ``open_capture(node)`` returns a cv2.VideoCapture-like object (tests pass a fake
     camera); ``sys_root``/``dev_root`` locate sysfs and /dev (tests pass fake trees).

@@ -1,7 +1,7 @@
 """GelSight Mini as a frame source: find it by serial, crop the gel, output the frame contract.
 
 The Mini is a UVC camera (USB 0c45:636d). Capture (V4L2, size/fps/fourcc, orientation,
-corrupt-frame counting, StreamLost) is :class:`~tactile_force.edge.sources.files.CameraSource`;
+corrupt-frame counting, StreamLost) is :class:`~tactile_force.edge.sources.CameraSource`;
 this module adds what is Mini-specific, following the public GelSight SDK (gsrobotics /
 gs_sdk) as facts: the camera is opened at 640x480 here (its sensor is 3280x2464; the SDK
 asks for either), a border of ``crop_fraction`` (the SDK's 1/7) of the height is removed
@@ -26,7 +26,7 @@ import cv2
 import numpy as np
 from tactile_force.edge.errors import SourceError
 from tactile_force.edge.frames import FRAME_SHAPE, TimedFrame
-from tactile_force.edge.sources.files import CameraSource, Capture, Clock, open_v4l2
+from tactile_force.edge.sources import CameraSource, Capture, Clock, open_v4l2
 
 from .discovery import AttachedDevice, find_gelsight_mini, locate_sensor
 
@@ -129,7 +129,7 @@ class GelSightMiniSource(CameraSource):
     """Frames from one GelSight Mini: cropped, 320x240 landscape, rotated to portrait
     (see the module docstring), ``meta['sensor']`` = name.
 
-    A :class:`~tactile_force.edge.sources.files.CameraSource` opened at the Mini's video node,
+    A :class:`~tactile_force.edge.sources.CameraSource` opened at the Mini's video node,
     asked for ``options.size``; if the driver settles on another size, that size is cropped
     instead (logged). Frames of any other size or format are counted in ``stats.corrupt``;
     30 in a row raise StreamLost (``reopen()`` tries again). ``open_capture(node)`` returns a

@@ -208,7 +208,7 @@ def frames_data_stats(frames_bgr: Iterable[np.ndarray], background: object, sour
     import os
 
     if isinstance(background, (str, os.PathLike)):
-        from ..sources.files import load_background  # OpenCV: imported only here
+        from ..sources import load_background  # OpenCV: imported only here
 
         background = load_background(background)
     if background is None:

@@ -67,7 +67,7 @@ def _check_args(args: argparse.Namespace) -> list[Path]:
                               "forces/force_N.txt)")
     if args.data is not None:  # its frames judged now, as the replay will (before any measurement)
         from ..errors import SourceError
-        from ..sources.files import ReplayFolderSource
+        from ..sources import ReplayFolderSource
 
         try:
             ReplayFolderSource(args.data).close()

@@ -323,7 +323,7 @@ def sensor_record(data: str | os.PathLike, frames: LabelledFrames, serial: str =
     if background is not None:
         from ..errors import SourceError
         from ..gate.given_background import given_background_press
-        from ..sources.files import load_background
+        from ..sources import load_background
 
         try:
             frame = load_background(background)[0]

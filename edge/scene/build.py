@@ -149,7 +149,7 @@ def build_scene(scene: Scene, clock: Clock | None = None, warn: Callable[[str], 
     import time
 
     from ..runtime.loop import ForceRuntime, RuntimeOptions, Sensor, build_depth_stage
-    from ..sources.files import load_background
+    from ..sources import load_background
 
     clock = clock or time.monotonic_ns
     notes: list[str] = []

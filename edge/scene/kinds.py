@@ -97,7 +97,7 @@ class VirtualKeys(SensorKeys):
 
 
 def _open_camera(s: SensorSpec, clock: Clock):
-    from ..sources.files import CameraSource
+    from ..sources import CameraSource
 
     return CameraSource(s.device, fps=s.fps or 60.0, name=s.name, clock=clock)
 
@@ -160,14 +160,14 @@ def _open_gelsight_mini(s: SensorSpec, clock: Clock):
 
 
 def _open_replay(s: SensorSpec, clock: Clock):
-    from ..sources.files import ReplayFolderSource
+    from ..sources import ReplayFolderSource
 
     assert s.path is not None  # required key of the kind
     return ReplayFolderSource(s.path, fps=s.fps, name=s.name, clock=clock)
 
 
 def _open_video(s: SensorSpec, clock: Clock):
-    from ..sources.files import VideoFileSource
+    from ..sources import VideoFileSource
 
     assert s.path is not None  # required key of the kind
     return VideoFileSource(s.path, fps=s.fps, name=s.name, clock=clock)

@@ -82,7 +82,7 @@ def output_refusals(scene: Scene, scene_file: str | os.PathLike, force: bool = F
 def _device_problem(s: SensorSpec) -> str | None:
     """Why ``run`` would refuse a live sensor at once because its device is not there (a
     /dev node that does not exist, a serial USB discovery does not list), else None."""
-    from ..sources.files import missing_camera
+    from ..sources import missing_camera
 
     if s.source == "camera":
         return missing_camera(s.device)
@@ -101,7 +101,7 @@ def _device_problem(s: SensorSpec) -> str | None:
 def source_problems(scene: Scene) -> list[str]:
     """What each sensor's source would refuse at once when ``run`` opens it (see the module
     docstring); paths that do not exist are left to :func:`~.read.scene_problems`."""
-    from ..sources.files import ReplayFolderSource, VideoFileSource, load_background
+    from ..sources import ReplayFolderSource, VideoFileSource, load_background
 
     out = []
     for i, s in enumerate(scene.sensors):

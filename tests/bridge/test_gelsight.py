@@ -9,7 +9,7 @@ import pytest
 from tactile_force.edge import ContactGate, GateOptions
 from tactile_force.edge.errors import SceneError, SourceError
 from tactile_force.edge.scene import describe_scene, open_source, parse_scene
-from tactile_force.edge.sources.files import StreamLost
+from tactile_force.edge.sources import StreamLost
 from tactile_force.firmware_bridge import (SDK_CROP_FRACTION, GelSightMiniOptions, GelSightMiniSource, crop_box,
                                            discover, find_gelsight_mini)
 

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from tactile_force.edge.errors import OptionsError, SourceError
-from tactile_force.edge.sources.files import CameraSource, StreamLost
+from tactile_force.edge.sources import CameraSource, StreamLost
 from tests.bridge.fakes import FakeCamera, landscape
 
 

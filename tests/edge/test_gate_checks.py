@@ -16,7 +16,7 @@ from tactile_force.edge.gate.checks import (
     is_uniform,
     motion_explained,
 )
-from tactile_force.edge.sources.files import load_background
+from tactile_force.edge.sources import load_background
 
 from tests.conftest import shared_data
 

@@ -16,7 +16,7 @@ from tactile_force.edge.gate.contact_gate import ContactGate
 from tactile_force.edge.model.onnx_model import OnnxForceModel, choose_bundle
 from tactile_force.edge.outputs import CsvWriter, JsonlWriter
 from tactile_force.edge.runtime.loop import ForceRuntime, RuntimeOptions, Sensor, plan_stages
-from tactile_force.edge.sources.files import ReplayFolderSource, load_background
+from tactile_force.edge.sources import ReplayFolderSource, load_background
 from tests.conftest import shared_data
 from edge_helpers import FakeClock, expected_force
 

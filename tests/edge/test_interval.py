@@ -198,7 +198,7 @@ def _runtime_readings(bundle_path, frames_dir, background):
     from tactile_force.edge.gate.contact_gate import ContactGate
     from tactile_force.edge.model.onnx_model import OnnxForceModel
     from tactile_force.edge.runtime.loop import ForceRuntime, Sensor
-    from tactile_force.edge.sources.files import ReplayFolderSource
+    from tactile_force.edge.sources import ReplayFolderSource
 
     gate = ContactGate()
     gate.capture_background(background)
@@ -211,7 +211,7 @@ def _runtime_readings(bundle_path, frames_dir, background):
 
 @pytest.fixture(scope="module")
 def aurova_background():
-    from tactile_force.edge.sources.files import load_background
+    from tactile_force.edge.sources import load_background
 
     return load_background(shared_data("digit_backgrounds", "aurova_background_b.png"))
 
@@ -270,7 +270,7 @@ def test_frames_read_while_the_background_is_learnt_have_no_known_interval(aurov
     from tactile_force.edge.model.onnx_model import OnnxForceModel
     from tactile_force.edge.runtime.loop import ForceRuntime, RuntimeOptions, Sensor
     from tactile_force.edge.scene import default_bundle_path
-    from tactile_force.edge.sources.files import ReplayFolderSource
+    from tactile_force.edge.sources import ReplayFolderSource
 
     from tests.conftest import ListSource
 

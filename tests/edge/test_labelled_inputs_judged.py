@@ -15,7 +15,7 @@ import pytest
 from tactile_force.edge.cli import main as cli_main
 from tactile_force.edge.data.dataset import AuthorsDataset
 from tactile_force.edge.errors import DatasetError, SourceError
-from tactile_force.edge.sources.files import ReplayFolderSource
+from tactile_force.edge.sources import ReplayFolderSource
 
 from benchmarks.robustness import make_dataset
 

@@ -15,7 +15,7 @@ from tactile_force.edge.cli import main as cli_main
 from tactile_force.edge.cli.run import PLOT_NAME, _plot_cv, run_demo
 from tactile_force.edge.data.dataset import AuthorsDataset, AuthorsDatasetWriter
 from tactile_force.edge.scene import build_scene, default_bundle_path, describe_scene, load_scene
-from tactile_force.edge.sources.files import ReplayFolderSource
+from tactile_force.edge.sources import ReplayFolderSource
 
 from tests.conftest import shared_data
 

@@ -17,7 +17,7 @@ import pytest
 from tactile_force.edge import ContactGate, Flags, ForceRuntime, OnnxForceModel, RuntimeOptions, Sensor, load_bundle
 from tactile_force.edge.cli import main as cli_main
 from tactile_force.edge.scene import default_bundle_path
-from tactile_force.edge.sources.files import ReplayFolderSource
+from tactile_force.edge.sources import ReplayFolderSource
 
 from tests.conftest import shared_data
 

@@ -12,7 +12,7 @@ import pytest
 from hypothesis import example, given
 from tactile_force.edge.data.dataset import AuthorsDataset
 from tactile_force.edge.data.labels import MAX_FORCE_N, LabelError, read_force_file
-from tactile_force.edge.sources.files import ReplayFolderSource
+from tactile_force.edge.sources import ReplayFolderSource
 from tactile_force.export.calibration import CalibrationData, CalibrationError
 
 from benchmarks.robustness import (

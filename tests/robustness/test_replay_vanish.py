@@ -7,7 +7,7 @@ import shutil
 
 import pytest
 from tactile_force.edge.errors import SourceError
-from tactile_force.edge.sources.files import ReplayFolderSource
+from tactile_force.edge.sources import ReplayFolderSource
 
 from benchmarks.robustness import make_dataset, probe_replay_vanish
 

@@ -7,7 +7,7 @@ import cv2
 import numpy as np
 import pytest
 from tactile_force.edge.errors import SourceError
-from tactile_force.edge.sources.files import VideoFileSource
+from tactile_force.edge.sources import VideoFileSource
 
 
 def _video(path, w, h, n=3):
