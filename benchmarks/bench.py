@@ -7,7 +7,7 @@ memory (:func:`benchmarks.latency.measure`), while the machine is watched
 (:class:`benchmarks.machine.CpuWindow`); the under-budget verdict per bundle is
 :func:`benchmarks.check.judge`'s (PASS / OVER_BUDGET / MACHINE_BUSY). With labelled data the
 error comes from a replay of that folder through the same runtime ``tactile-force run``
-builds, with the same metric code (:func:`tactile_force.edge.cli.run.readings_error`).
+builds, with the same metric code (:func:`tactile_force.edge.data.metrics.readings_error`).
 
 The result is a :class:`BenchReport`, written as ``report.json`` (a stable contract, see
 docs/bench.md), ``report.md`` and ``pareto.png`` (error against p99 latency, the budget line).
@@ -275,12 +275,12 @@ def replay_readings(bundle: Path, data: Path, background: Path | None, threads: 
 def replay_error(bundle: Path, data: Path, background: Path | None, threads: int = 1,
                  readings: list | None = None, warn: Callable[[str], None] | None = None) -> BenchError | None:
     """Error of ``bundle`` on the labelled folder ``data`` as ``tactile-force run`` reports it
-    (:func:`replay_readings`, then :func:`tactile_force.edge.cli.run.readings_error`);
+    (:func:`replay_readings`, then :func:`tactile_force.edge.data.metrics.readings_error`);
     None when no frame got a CNN reading. ``readings``: an earlier replay's, to reuse.
 
     Raises a TactileForceError subclass (exit 2) when ``data`` or ``background`` is unusable,
     or when ``data`` has no truth (not a labelled folder)."""
-    from tactile_force.edge.cli.run import readings_error
+    from tactile_force.edge.data.metrics import readings_error
     from tactile_force.edge.errors import DatasetError
 
     if readings is None:

@@ -166,7 +166,7 @@ def two_sensors(bundle: Path, pool, seconds: float) -> tuple[list[list[object]],
 
 def demo_late(bundle: Path) -> tuple[list[list[object]], dict]:
     """``tactile-force demo`` (3 grasps, seed 0) headless: readings, late ones, total p50/p99."""
-    from tactile_force.edge.cli.run import run_demo
+    from tactile_force.edge.cli.demo import run_demo
     from tactile_force.edge.synthetic import VirtualDigitSource
 
     with tempfile.TemporaryDirectory() as tmp:

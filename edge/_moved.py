@@ -38,7 +38,7 @@ MOVED: dict[str, tuple[str, ...]] = {
     "cli_args": ("cli.args",),
     "cli_bench": ("cli.bench",),
     "cli_bundle": ("cli.bundle",),
-    "cli_runtime": ("cli.run",),
+    "cli_runtime": ("cli.run", "cli.demo", "cli.scene", "cli.replay_report", "data.metrics"),
     "depth.cli": ("cli.calibrate_depth",),
     "synthetic.cli": ("cli.synth",),
     "logs": ("report.logs",),

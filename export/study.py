@@ -220,7 +220,7 @@ def grid(first_conv: str | None, quick: bool = False) -> list[tuple[str, Setting
 def _errors(readings: list, fp32_by_frame: dict[int, float] | None, data: Path, background: Path | None
             ) -> ConfigError | None:
     from tactile_force.benchmarks.bench import replay_error
-    from tactile_force.edge.cli.run import cnn_readings
+    from tactile_force.edge.data.metrics import cnn_readings
 
     e = replay_error(Path("."), data, background, readings=readings)
     if e is None:
@@ -236,7 +236,7 @@ def _errors(readings: list, fp32_by_frame: dict[int, float] | None, data: Path, 
 
 
 def _by_frame(readings: list) -> dict[int, float]:
-    from tactile_force.edge.cli.run import cnn_readings
+    from tactile_force.edge.data.metrics import cnn_readings
 
     return {r.frame_index: float(r.force_n) for r in cnn_readings(readings)}
 

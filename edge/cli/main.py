@@ -25,11 +25,11 @@ import threading
 
 #: name -> (module, configure function, main function, one-line help)
 COMMANDS: dict[str, tuple[str, str, str, str]] = {
-    "demo": ("tactile_force.edge.cli.run", "configure_demo", "main_demo",
+    "demo": ("tactile_force.edge.cli.demo", "configure", "main",
              "virtual DIGIT grasps -> embedded default model: readings, error, latency, plot (no hardware)"),
-    "run": ("tactile_force.edge.cli.run", "configure_run", "main_run",
+    "run": ("tactile_force.edge.cli.run", "configure", "main",
             "run a scene file (live sensors or replay) and stream force readings"),
-    "scene": ("tactile_force.edge.cli.run", "configure_scene", "main_scene",
+    "scene": ("tactile_force.edge.cli.scene", "configure", "main",
               "inspect a scene file: 'scene show FILE' prints the stages that will run"),
     "export": ("tactile_force.export.cli", "configure_export", "main_export",
                "checkpoint (.pth) + variant -> verified fp32 ONNX bundle (needs the 'export' extra)"),

@@ -1,4 +1,4 @@
-"""CLI: ``tactile-force run``, ``tactile-force scene show FILE``, ``tactile-force demo``.
+"""CLI: ``tactile-force run``: a scene, or one sensor from flags, streamed to readings.
 
 ``run`` takes a scene file (``--scene``) or builds the same scene from flags (``--source``
 ...). Exit codes follow :mod:`tactile_force.edge.cli`: 0 success, 1 a check failed (every
@@ -9,56 +9,20 @@ reading).
 from __future__ import annotations
 
 import argparse
-import json
 import math
-import os
 import signal
 import sys
 import threading
-from dataclasses import asdict, dataclass, field
-from pathlib import Path
 from typing import TextIO
-
-import numpy as np
 
 from ..errors import CheckFailedError, SceneError, SourceError
 from ..reading import Flags, ForceReading
 from ..report.plots import nice_ticks  # noqa: F401 - re-exported (tests, older callers)
 from .args import positive_float, positive_int
-
-#: File name of the demo's force-over-time plot (README and docs name it too).
-PLOT_NAME = "force_vs_time.png"
+from .replay_report import plot_force, replay_plot_path, truth_lines
 
 
-# -- scene show ---------------------------------------------------------------------------
-def configure_scene(p: argparse.ArgumentParser) -> None:
-    sub = p.add_subparsers(dest="action", required=True)
-    show = sub.add_parser("show", help="print the stages the scene will run and make every check 'run' makes before "
-                                       "it opens a device (opens no device, loads no model); exit 2, as 'run' would, "
-                                       "when it would refuse the scene")
-    show.add_argument("file", help="scene TOML file")
-    show.add_argument("--force", action="store_true",
-                      help="check as 'run --force' would (existing outputs may be replaced, never an input)")
-
-
-def main_scene(args: argparse.Namespace) -> int:
-    from ..scene import describe_scene, load_scene
-    from ..scene.preflight import run_refusals
-
-    scene = load_scene(args.file, check=False)
-    print("\n".join(describe_scene(scene)))
-    problems = run_refusals(scene, args.file, force=getattr(args, "force", False))
-    for p in problems:
-        print(f"error: {p}", file=sys.stderr)
-    if problems:
-        print(f"scene {scene.origin}: {len(problems)} problem(s); 'tactile-force run' would stop on them (exit 2)",
-              file=sys.stderr)
-        return 2
-    return 0
-
-
-# -- run ----------------------------------------------------------------------------------
-def configure_run(p: argparse.ArgumentParser) -> None:
+def configure(p: argparse.ArgumentParser) -> None:
     p.formatter_class = argparse.RawDescriptionHelpFormatter
     p.description = (
         "Stream force readings from a scene file, or from one source given by flags:\n"
@@ -102,46 +66,10 @@ def _summary_lines(stats, runtime) -> list[str]:
     return lines
 
 
-def cnn_readings(readings: list[ForceReading]) -> list[ForceReading]:
-    """Readings where the CNN gave a force and the frame has a truth > 0 N (what RE/MAE are over)."""
-    skip = Flags.NO_CONTACT | Flags.INVALID_INPUT | Flags.STALE
-    return [r for r in readings if not (r.flags & skip) and math.isfinite(r.force_n)
-            and r.truth_n is not None and r.truth_n > 0]
 
 
-def readings_error(readings: list[ForceReading]):
-    """The error of a replay with truth, as ``run`` reports it: (ErrorReport over
-    :func:`cnn_readings` or None when there is none, frames with truth, frames with truth
-    >= 1 N that got no CNN reading). ``tactile-force bench --data`` reports the same figures."""
-    from ..data.metrics import error_report
-
-    with_truth = [r for r in readings if r.truth_n is not None and Flags.STALE not in r.flags]
-    cnn = cnn_readings(readings)
-    in_cnn = {id(r) for r in cnn}
-    missed = sum(1 for r in with_truth if r.truth_n is not None and r.truth_n >= 1.0 and id(r) not in in_cnn)
-    rep = error_report([r.force_n for r in cnn], [float(r.truth_n or 0.0) for r in cnn]) if cnn else None
-    return rep, len(with_truth), missed
 
 
-def truth_lines(readings: list[ForceReading]) -> list[str]:
-    """RE and MAE (mean +- std) over the CNN readings with truth, overall and per 1 N bin,
-    and how many frames with truth >= 1 N got no CNN reading; [] when no frame had truth."""
-    rep, n_truth, missed = readings_error(readings)
-    if not n_truth:
-        return []
-    lines = []
-    if rep is not None:
-        o = rep.overall
-        lines.append(f"error vs truth over {o.n} CNN readings: RE {o.re_mean:.3f} +- {o.re_std:.3f}, "
-                     f"MAE {o.mae_mean:.3f} +- {o.mae_std:.3f} N")
-        for label, st in rep.per_bin.items():
-            lines.append(f"  {label + ' N':>8}: RE {st.re_mean:.3f} +- {st.re_std:.3f}, "
-                         f"MAE {st.mae_mean:.3f} +- {st.mae_std:.3f} N  (n={st.n})")
-    else:
-        lines.append(f"error vs truth: no CNN reading among the {n_truth} frames with truth")
-    if missed:
-        lines.append(f"{missed} frame(s) with truth >= 1 N got no force estimate (no_contact or invalid_input)")
-    return lines
 
 
 class LearningStatus:
@@ -269,7 +197,7 @@ def _check_depth_mapping(scene) -> None:
                              "calibrate-depth' result), or use a scene file with [depth] mapping = FILE")
 
 
-def main_run(args: argparse.Namespace) -> int:
+def main(args: argparse.Namespace) -> int:
     from ..scene import build_scene, save_scene
 
     scene = _run_scene(args)
@@ -309,7 +237,7 @@ def main_run(args: argparse.Namespace) -> int:
         built.close()  # closes every output: an MCAP log gets its summary and footer
     print("\n".join(_summary_lines(stats, rt) + truth_lines(readings)), file=sys.stderr)
     if readings and (plot := replay_plot_path(args.out, scene)) is not None:
-        _plot(readings, plot)
+        plot_force(readings, plot)
         print(f"wrote {plot} (force and truth against time)", file=sys.stderr)
     if stop.signal is not None:
         print(f"run stopped by {stop.signal.name} after {stats.readings} readings; outputs closed", file=sys.stderr)
@@ -325,148 +253,16 @@ def main_run(args: argparse.Namespace) -> int:
     return 0
 
 
-def replay_plot_path(outs: list[str], scene) -> Path | None:
-    """Where ``run`` draws a labelled replay's force and truth against time: next to the first
-    reading output, ``<its name>_force_vs_time.png`` (None when the run writes no file)."""
-    paths = [Path(o) for o in outs] or [Path(p) for o in getattr(scene, "outputs", [])
-                                         if (p := getattr(o, "path", None))]
-    if not paths:
-        return None
-    first = paths[0]
-    return first.with_name(f"{first.stem}_{PLOT_NAME}")
 
 
 # -- demo ---------------------------------------------------------------------------------
-@dataclass
-class DemoSummary:
-    """What the demo measured: error of CNN readings vs ground truth, gate agreement,
-    latency percentiles (ms), counts; paths of the plot, readings CSV and this JSON."""
-
-    bundle: str
-    readings: int
-    contact_readings: int
-    error: dict | None
-    gate_agreement: float | None
-    latency_ms: dict
-    flags: dict
-    plot: str
-    readings_csv: str
-    summary_json: str = ""
-    notes: list[str] = field(default_factory=list)
 
 
-def _plot(readings: list[ForceReading], path: Path) -> str:
-    """Force over time, truth vs estimate, as PNG (:func:`tactile_force.edge.report.plots.force_vs_time`)."""
-    t = np.array([r.timestamp_ns for r in readings], np.float64)
-    t = (t - t[0]) / 1e9 if t.size else t
-    est = np.array([r.force_n for r in readings], np.float64)
-    truth = np.array([np.nan if r.truth_n is None else r.truth_n for r in readings], np.float64)
-    return _plot_cv(t, est, truth, path)
 
 
-def _plot_cv(t: np.ndarray, est: np.ndarray, truth: np.ndarray, path: Path) -> str:
-    """The force plot (OpenCV, the package's one plotting module); returns how it was drawn."""
-    from ..report.plots import force_vs_time
-
-    force_vs_time(t, est, truth, path)
-    return "opencv"
 
 
-def run_demo(source, bundle: str | os.PathLike, out_dir: str | os.PathLike, threads: int = 1,
-             echo=print, every: int = 10, publish_as: str | os.PathLike | None = None) -> DemoSummary:
-    """Play ``source`` (a FrameSource whose frames carry truth_n) through the gate and the
-    bundle, write readings.csv, force_vs_time.png (:data:`PLOT_NAME`) and summary.json to ``out_dir``
-    (the summary names the files under ``publish_as`` when ``out_dir`` is a staging folder moved there)."""
-    from ..data.metrics import error_stats
-    from ..gate.contact_gate import ContactGate
-    from ..model.onnx_model import OnnxForceModel
-    from ..outputs import CsvWriter, format_reading
-    from ..runtime.loop import ForceRuntime, RuntimeOptions, Sensor
-
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    model = OnnxForceModel(bundle, threads=threads)
-    rt = ForceRuntime([Sensor("digit", source, ContactGate())], model, RuntimeOptions(report_stale=False))
-    readings: list[ForceReading] = []
-    csv_path = out / "readings.csv"
-    with CsvWriter(csv_path) as csv_out:
-        def keep(r: ForceReading) -> None:
-            readings.append(r)
-            if echo and (Flags.NO_CONTACT not in r.flags) and r.frame_index % every == 0:
-                echo(format_reading(r))
-
-        stats = rt.run([csv_out], on_reading=keep)
-    rt.close()
-    cnn = cnn_readings(readings)
-    err = None
-    if cnn:
-        es = error_stats([r.force_n for r in cnn], [float(r.truth_n or 0.0) for r in cnn])
-        err = es.as_dict()
-    with_truth = [r for r in readings if r.truth_n is not None and Flags.INVALID_INPUT not in r.flags]
-    agree = None
-    if with_truth:
-        agree = float(np.mean([(Flags.NO_CONTACT not in r.flags) == ((r.truth_n or 0.0) >= 1.0) for r in with_truth]))
-    flag_counts: dict[str, int] = {}
-    for r in readings:
-        for name in r.flags.names() or ["ok"]:
-            flag_counts[name] = flag_counts.get(name, 0) + 1
-    plot_path = out / PLOT_NAME
-    how = _plot(readings, plot_path) if readings else "none"
-    final = Path(publish_as) if publish_as is not None else out
-    summary = DemoSummary(
-        bundle=str(bundle), readings=len(readings), contact_readings=len(cnn), error=err, gate_agreement=agree,
-        latency_ms=stats.latency_ms, flags=flag_counts, plot=str(final / PLOT_NAME),
-        readings_csv=str(final / "readings.csv"),
-        notes=[f"plot drawn with {how}", "error over readings where the CNN ran and truth > 0 N",
-               "gate_agreement: share of frames where gate contact == (truth >= 1 N)"],
-    )
-    summary.summary_json = str(final / "summary.json")
-    (out / "summary.json").write_text(json.dumps(asdict(summary), indent=2, default=float) + "\n")
-    return summary
 
 
-def configure_demo(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--out", default="tactile_force_demo",
-                   help=f"output folder, relative to the working directory ({PLOT_NAME}, readings.csv, summary.json)")
-    p.add_argument("--grasps", type=positive_int, default=3, help="grasp sequences the virtual DIGIT plays (>= 1)")
-    p.add_argument("--seed", type=int, default=0, help="random seed of the virtual DIGIT")
-    p.add_argument("--bundle", default="default", help="model bundle (default: the embedded default model)")
-    p.add_argument("--threads", type=positive_int, default=1, help="ONNX Runtime intra-op threads (>= 1)")
-    p.add_argument("--force", action="store_true", help="replace --out when it holds an earlier demo's result")
 
 
-def main_demo(args: argparse.Namespace) -> int:
-    from ..scene import default_bundle_path, output_problem
-
-    bundle = default_bundle_path() if args.bundle == "default" else Path(args.bundle)
-    if not (bundle / "model.json").is_file():
-        raise SceneError(f"--bundle {bundle}: not a bundle folder (expected model.json in it)")
-    from ..files.guard import OutputKind, check_output
-
-    out = Path(args.out).absolute()
-    # a new or empty folder, or (--force) an earlier demo's result holding nothing else; never the bundle
-    check_output(out, [("--bundle", bundle)], force=getattr(args, "force", False), kind=OutputKind.FOLDER,
-                 verb="demo")
-    if problem := output_problem(out.with_name(f".{out.name}.probe")):  # the staging folder is made beside --out
-        raise SceneError(f"--out {out}: {problem}")
-    try:
-        from ..synthetic import VirtualDigitSource
-    except ImportError as exc:
-        raise SourceError(f"the demo needs tactile_force.edge.synthetic.VirtualDigitSource ({exc})") from None
-    source = VirtualDigitSource(seed=args.seed, n_grasps=args.grasps, fps=60.0)
-    print(f"virtual DIGIT: {args.grasps} grasps, seed {args.seed} -> bundle {bundle}")
-    from ..files.atomic import staged_folder
-
-    with staged_folder(out, "demo") as tmp:
-        s = run_demo(source, bundle, tmp, threads=args.threads, publish_as=out)
-    if s.error:
-        print(f"error vs truth over {s.error['n']} CNN readings: "
-              f"RE {s.error['re_mean']:.3f} +- {s.error['re_std']:.3f}, "
-              f"MAE {s.error['mae_mean']:.3f} +- {s.error['mae_std']:.3f} N")
-    if s.gate_agreement is not None:
-        print(f"gate agrees with truth (contact <=> >= 1 N) on {100 * s.gate_agreement:.1f} % of frames")
-    print("latency ms (p50 / p99): " + ", ".join(
-        f"{k} {v['p50']:.2f}/{v['p99']:.2f}" for k, v in s.latency_ms.items() if not math.isnan(v["p50"])))
-    print(f"flags: {s.flags}")
-    print(f"wrote {s.plot}, {s.readings_csv}, {s.summary_json}")
-    return 0

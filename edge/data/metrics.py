@@ -10,10 +10,13 @@ left-closed: bin k holds k <= f_gt < k + 1.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Sequence
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
+
+from ..reading import Flags, ForceReading
 
 
 @dataclass(slots=True)
@@ -117,3 +120,22 @@ def error_report(
             raise ValueError(f"group '{gname}' has {lab.size} labels for {p.size} samples")
         report.per_group[gname] = {str(v): error_stats(p[lab == v], t[lab == v]) for v in sorted(set(lab.tolist()))}
     return report
+
+
+def cnn_readings(readings: list[ForceReading]) -> list[ForceReading]:
+    """Readings where the CNN gave a force and the frame has a truth > 0 N (what RE/MAE are over)."""
+    skip = Flags.NO_CONTACT | Flags.INVALID_INPUT | Flags.STALE
+    return [r for r in readings if not (r.flags & skip) and math.isfinite(r.force_n)
+            and r.truth_n is not None and r.truth_n > 0]
+
+
+def readings_error(readings: list[ForceReading]) -> tuple[ErrorReport | None, int, int]:
+    """The error of a replay with truth, as ``run`` reports it: (ErrorReport over
+    :func:`cnn_readings` or None when there is none, frames with truth, frames with truth
+    >= 1 N that got no CNN reading). ``tactile-force bench --data`` reports the same figures."""
+    with_truth = [r for r in readings if r.truth_n is not None and Flags.STALE not in r.flags]
+    cnn = cnn_readings(readings)
+    in_cnn = {id(r) for r in cnn}
+    missed = sum(1 for r in with_truth if r.truth_n is not None and r.truth_n >= 1.0 and id(r) not in in_cnn)
+    rep = error_report([r.force_n for r in cnn], [float(r.truth_n or 0.0) for r in cnn]) if cnn else None
+    return rep, len(with_truth), missed

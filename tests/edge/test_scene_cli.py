@@ -12,7 +12,8 @@ import cv2
 import pytest
 from tactile_force.edge import SceneError
 from tactile_force.edge.cli import main as cli_main
-from tactile_force.edge.cli.run import PLOT_NAME, _plot_cv, run_demo
+from tactile_force.edge.cli.demo import run_demo
+from tactile_force.edge.cli.replay_report import PLOT_NAME, _plot_cv
 from tactile_force.edge.data.dataset import AuthorsDataset, AuthorsDatasetWriter
 from tactile_force.edge.scene import build_scene, default_bundle_path, describe_scene, load_scene
 from tactile_force.edge.sources import ReplayFolderSource

@@ -14,7 +14,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-from tactile_force.edge.cli import run as cli_runtime
+from tactile_force.edge.cli import scene as cli_scene
 from tactile_force.edge.cli import main as cli_main
 from tactile_force.edge.errors import SceneError
 from tactile_force.edge.scene import load_scene
@@ -195,7 +195,7 @@ def test_internal_errors_are_one_line_exit_1(monkeypatch, capsys):
     def broken(args):
         raise ZeroDivisionError("float division by zero")
 
-    monkeypatch.setattr(cli_runtime, "main_scene", broken)
+    monkeypatch.setattr(cli_scene, "main", broken)
     assert cli_main(["scene", "show", "x.toml"]) == 1
     err = capsys.readouterr().err
     assert "internal error: ZeroDivisionError" in err and "--debug" in err and "Traceback" not in err
@@ -205,7 +205,7 @@ def test_os_errors_on_user_paths_exit_2(monkeypatch, capsys):
     def unreadable(args):
         raise PermissionError(13, "Permission denied", "/data/scene.toml")
 
-    monkeypatch.setattr(cli_runtime, "main_scene", unreadable)
+    monkeypatch.setattr(cli_scene, "main", unreadable)
     assert cli_main(["scene", "show", "/data/scene.toml"]) == 2
     assert "error: /data/scene.toml: Permission denied" in capsys.readouterr().err
 
