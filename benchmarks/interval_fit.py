@@ -106,7 +106,7 @@ def grasp_readings(bundle, seed: int, n_grasps: int, split: str = SPLIT, peak_n:
 def interval_from_readings(g: GraspReadings, coverage: float, model_sha256: str):
     """The conformal table from runtime readings: contact readings' (estimate, truth) pairs,
     saturated ones one-sided; no_contact readings' true forces for the gate-closed bound."""
-    from tactile_force.edge.bundle.interval import fit_interval
+    from tactile_force.edge.fitting.interval import fit_interval
 
     c = g.contact()
     return fit_interval(g.force[c], g.truth[c], coverage, data=g.source, model_sha256=model_sha256,

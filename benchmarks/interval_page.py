@@ -199,7 +199,7 @@ def real_section() -> tuple[str, dict]:
 
 
 def cost_section(repeats: int = 7, calls: int = 200_000) -> tuple[str, dict]:
-    from tactile_force.edge.bundle.interval import fit_interval
+    from tactile_force.edge.fitting.interval import fit_interval
     from tactile_force.edge.reading import Flags, ForceReading
     from tactile_force.edge.runtime.loop import ForceRuntime
 

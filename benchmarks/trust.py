@@ -214,7 +214,8 @@ def default_data_stats(n: int = 600, seed: int = 0):
     spread 3 %) seen through the gate against the shipped no-contact background. Cached in
     benchmarks/cache/trust_data_stats-nN-seedS.json."""
     from tactile_force.edge import AuthorsDataset
-    from tactile_force.edge.bundle.data_stats import DataStats, compute_data_stats
+    from tactile_force.edge.bundle.data_stats import DataStats
+    from tactile_force.edge.fitting.data_stats import compute_data_stats
     from tactile_force.edge.synthetic import DatasetOptions, ForceDistribution, generate_dataset
     from tactile_force.edge.typed_json import from_json, to_json
 

@@ -46,7 +46,7 @@ _LAZY = {
     "CameraSource": "sources", "ReplayFolderSource": "sources", "StreamLost": "sources", "VideoFileSource": "sources",
     "load_background": "sources", "open_v4l2": "sources",
     "ForceCalibration": "bundle.force_calibration", "DataStats": "bundle.data_stats",
-    "ForceInterval": "bundle.interval", "fit_interval": "bundle.interval",
+    "ForceInterval": "bundle.interval", "fit_interval": "fitting.interval",
     # labelled data and metrics
     "AuthorsDataset": "data.dataset", "AuthorsDatasetWriter": "data.dataset", "Sample": "data.dataset",
     "ErrorReport": "data.metrics", "ErrorStats": "data.metrics", "error_report": "data.metrics",
@@ -98,10 +98,11 @@ __all__ = [
 if TYPE_CHECKING:  # for type checkers and IDEs; at run time these load lazily
     from .bundle.data_stats import DataStats
     from .bundle.force_calibration import ForceCalibration
-    from .bundle.interval import ForceInterval, fit_interval
+    from .bundle.interval import ForceInterval
     from .data.dataset import AuthorsDataset, AuthorsDatasetWriter, Sample
     from .data.metrics import ErrorReport, ErrorStats, error_report, error_stats, relative_error
     from .depth import DepthOptions, DepthResult, DepthStage, MaxDeformationBaseline, NormalLUT
+    from .fitting.interval import fit_interval
     from .gate.contact_gate import ContactGate, GateOptions, GateResult
     from .model.onnx_model import LadderChoice, OnnxForceModel, choose_bundle
     from .outputs import CsvWriter, JsonlWriter, StdoutWriter

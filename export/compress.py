@@ -43,13 +43,14 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from tactile_force.edge.bundle.data_stats import DataStats, frames_data_stats
-from tactile_force.edge.bundle.interval import fit_interval
+from tactile_force.edge.bundle.data_stats import DataStats
 from tactile_force.edge.bundle.manifest import ErrorFigures, ErrorReport
 from tactile_force.edge.bundle.store import Bundle, load_bundle, write_bundle
 from tactile_force.edge.data.dataset import AuthorsDataset, read_image
 from tactile_force.edge.data.metrics import error_stats
 from tactile_force.edge.errors import DatasetError, TactileForceError
+from tactile_force.edge.fitting.data_stats import frames_data_stats
+from tactile_force.edge.fitting.interval import fit_interval
 from tactile_force.edge.frames import FRAME_SHAPE
 
 from .calibration import CalibrationData

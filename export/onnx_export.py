@@ -24,7 +24,6 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from tactile_force.edge.bundle.interval import fit_interval
 from tactile_force.edge.bundle.manifest import (
     Architecture,
     FrameReduction,
@@ -39,6 +38,7 @@ from tactile_force.edge.bundle.manifest import (
 )
 from tactile_force.edge.bundle.store import Bundle, write_bundle
 from tactile_force.edge.errors import CheckFailedError, TactileForceError
+from tactile_force.edge.fitting.interval import fit_interval
 from torch import nn
 
 from .calibration import CalibrationData, random_frames
@@ -259,7 +259,7 @@ def _resolve(source, options: ExportOptions) -> tuple[nn.Module, ModelSpec, dict
 def _data_stats_fields(data: CalibrationData | None, background: object) -> dict:
     """Manifest ``data_stats`` of the parity frames the export saw (RGB variants), else
     ``data_stats_missing``: why there are none (the runtime's honesty checks are off)."""
-    from tactile_force.edge.bundle.data_stats import frames_data_stats, no_frames_warning
+    from tactile_force.edge.fitting.data_stats import frames_data_stats, no_frames_warning
 
     if data is not None and "rgb" in data.inputs and len(data.inputs["rgb"]):
         return {"data_stats": frames_data_stats(list(data.inputs["rgb"]), background, data.source, "export")}

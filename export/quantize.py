@@ -28,7 +28,6 @@ from pathlib import Path
 
 import numpy as np
 from onnxruntime.quantization import CalibrationDataReader
-from tactile_force.edge.bundle.interval import fit_interval
 from tactile_force.edge.bundle.manifest import (
     DiffFigures,
     ErrorFigures,
@@ -40,6 +39,7 @@ from tactile_force.edge.bundle.manifest import (
 from tactile_force.edge.bundle.store import Bundle, load_bundle, write_bundle
 from tactile_force.edge.data.metrics import error_stats
 from tactile_force.edge.errors import TactileForceError, require
+from tactile_force.edge.fitting.interval import fit_interval
 from tactile_force.edge.report.progress import progress
 from tactile_force.edge.typed_json import from_json
 
@@ -329,7 +329,7 @@ def quantize_bundle(src: Bundle | str | os.PathLike, dest: str | os.PathLike, op
     if rgb_calib and o.background is None and m.data_stats is None:
         manifest.data_stats = calibration_data_stats(calib, None)  # type: ignore[arg-type]
     elif not rgb_calib and m.data_stats is None:
-        from tactile_force.edge.bundle.data_stats import no_frames_warning
+        from tactile_force.edge.fitting.data_stats import no_frames_warning
 
         manifest.data_stats_missing = no_frames_warning(
             "quantize", "RGB calibration frames (and the source bundle has no data_stats)")
@@ -355,7 +355,7 @@ def quantize_bundle(src: Bundle | str | os.PathLike, dest: str | os.PathLike, op
 def calibration_data_stats(data: CalibrationData, background: object):
     """Manifest ``data_stats`` of calibration frames seen against a no-contact ``background``
     (None: their colours only, with a warning that the contact-size check is off)."""
-    from tactile_force.edge.bundle.data_stats import compute_data_stats, frames_data_stats
+    from tactile_force.edge.fitting.data_stats import compute_data_stats, frames_data_stats
     from tactile_force.edge.frames import check_frame
 
     if background is None:

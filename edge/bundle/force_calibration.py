@@ -2,7 +2,7 @@
 
 Stored in a bundle's manifest (``force_calibration``) and applied by the runtime to every
 model output (:meth:`ForceCalibration.apply_inplace`: a binary search over a few knots per
-value, no allocation). Fitting is :mod:`tactile_force.edge.fitting.calibrate`
+value, no allocation). Fitting is :mod:`tactile_force.edge.fitting.force_calibration`
 (``tactile-force calibrate-force``); this module only holds the record and applies it
 (numpy only, so ``import tactile_force.edge`` stays light).
 """

@@ -37,7 +37,7 @@ COMMANDS: dict[str, tuple[str, str, str, str]] = {
                  "fp32 bundle -> int8 static / int8 dynamic / fp16 bundle with error report"),
     "bundle": ("tactile_force.edge.cli.bundle", "configure_bundle", "main_bundle",
                "show and verify a model bundle (manifest, hash, graph contract; no torch needed)"),
-    "calibrate-force": ("tactile_force.edge.fitting.calibrate", "configure", "main",
+    "calibrate-force": ("tactile_force.edge.cli.calibrate_force", "configure", "main",
                         "fit a per-sensor force calibration from 10-30 labelled presses into a new bundle"),
     "compress": ("tactile_force.export.cli_compress", "configure", "main",
                  "distil a trained model into compact students on unlabelled frames; keep the best within budget"),

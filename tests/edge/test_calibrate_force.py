@@ -16,7 +16,7 @@ from tactile_force.edge import (
     default_bundle_path,
     load_bundle,
 )
-from tactile_force.edge.fitting.calibrate import (
+from tactile_force.edge.fitting.force_calibration import (
     CalibrationLimits,
     CalibrationRefused,
     fit_force_calibration,

@@ -68,7 +68,7 @@ def test_a_no_contact_background_of_the_same_unit_is_not_flagged(calibrated, aur
 
 def test_data_stats_with_a_background_are_a_reference_too(aurova_dir):
     """An uncalibrated bundle whose data statistics were recorded with a no-contact background."""
-    from tactile_force.edge.bundle.data_stats import compute_data_stats
+    from tactile_force.edge.fitting.data_stats import compute_data_stats
 
     model = OnnxForceModel(default_bundle_path())
     frames = [cv2.imread(str(p)) for p in sorted((aurova_dir / "images").glob("*.png"))]

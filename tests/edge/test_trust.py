@@ -21,7 +21,8 @@ from tactile_force.edge import (
     RuntimeOptions,
     Sensor,
 )
-from tactile_force.edge.bundle.data_stats import DataStats, DataStatsCheck, compute_data_stats
+from tactile_force.edge.bundle.data_stats import DataStats, DataStatsCheck
+from tactile_force.edge.fitting.data_stats import compute_data_stats
 
 from tests.conftest import ListSource, shared_data
 
