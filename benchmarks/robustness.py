@@ -1258,11 +1258,12 @@ file and line, `tactile-force record --repair DIR` (no hardware) keeps all sampl
 filesystem until it is full: exit 1, the summary printed, every sample written readable, no
 temp file left. Replay folder deleted mid-run, unpaced and paced: the next read raises
 `SourceError` ("disappeared"); nothing is counted as corrupt frames.
+
 The verbs' promises (`benchmarks/robustness_verbs.py`; inputs: 12 labelled pressed frames from
 `synth`, the shipped no-contact image, a copy of the default bundle and, for `study` and
-`compress`, a tiny random-weight fp32 bundle; without torch those cases are not run and the
-category says so). In-process cases answer within 180 s, signalled ones stop within 120 s (else
-**hang**).
+`compress`, a tiny random-weight model (an fp32 bundle, a checkpoint); without torch those
+cases are not run and the category says so). In-process cases answer within 180 s, signalled
+ones stop within 120 s (else **hang**).
 * Result folders, for `bench`, `study`, `synth` and `demo`: `--out` holding the user's own files
   (with and without `--force`), the verb's earlier result with a user's file added (`--force`),
   `--out` = an input or inside one (the bundle, the `--data` folder; the `--background` file or
