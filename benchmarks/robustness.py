@@ -1166,6 +1166,24 @@ def run_catalogue(examples: int = 100, log: Callable[[str], None] = print) -> li
         sm = base / "smaller"
         sm.mkdir()
         i19.run_cases(i19.smaller_cases(sm), t.add)
+
+        from . import robustness_verbs as verbs
+
+        inputs: verbs.Inputs | Exception
+        try:
+            inputs = verbs.Inputs.make(base / "verbs")
+        except Exception as exc:  # noqa: BLE001 - a package that cannot make them fails every category below
+            inputs = exc
+        for _key, name, build in verbs.CATEGORIES:
+            t = category(name)
+            try:
+                if isinstance(inputs, Exception):
+                    raise inputs
+                cases, t.note = build(inputs, examples)
+            except Exception as exc:  # noqa: BLE001 - classified, never propagated
+                t.add(Verdict(Outcome.TRACEBACK, f"no cases: {type(exc).__name__}: {exc}"[:300]))
+                continue
+            i19.run_cases(cases, t.add)
     return tallies
 
 
@@ -1239,7 +1257,56 @@ file and line, `tactile-force record --repair DIR` (no hardware) keeps all sampl
 `tactile-force record` (DIGIT and HID scale faked at the hardware boundary) on a small real
 filesystem until it is full: exit 1, the summary printed, every sample written readable, no
 temp file left. Replay folder deleted mid-run, unpaced and paced: the next read raises
-`SourceError` ("disappeared"); nothing is counted as corrupt frames."""
+`SourceError` ("disappeared"); nothing is counted as corrupt frames.
+
+The verbs' promises (`benchmarks/robustness_verbs.py`; inputs: 12 labelled pressed frames from
+`synth`, the shipped no-contact image, a copy of the default bundle and, for `study` and
+`compress`, a tiny random-weight model (an fp32 bundle, a checkpoint); without torch those
+cases are not run and the category says so). In-process cases answer within 180 s, signalled
+ones stop within 120 s (else **hang**).
+* Result folders, for `bench`, `study`, `synth` and `demo`: `--out` holding the user's own files
+  (with and without `--force`), the verb's earlier result with a user's file added (`--force`),
+  `--out` = an input or inside one (the bundle, the `--data` folder; the `--background` file or
+  the folder holding it; `--force` with =), the same command twice without `--force`: exit 2
+  naming `--out`, every byte of the user's files and inputs kept (else **data lost**), no hidden
+  staging folder left beside `--out` (else **silent wrong**). `--force` over the verb's own
+  earlier result: a complete run that replaces the folder whole, its record listing every file.
+  A plot drawn beside an output (`calibrate-force`'s `<out>_calibration.png`, `run --out r.csv`'s
+  `r_force_vs_time.png`) never replaces the user's file of that name: exit 2 naming it, or no plot.
+* Interruption: a subprocess sent SIGINT or SIGTERM one second after it is at work (`bench`,
+  `study`, `synth`, `demo`: SIGINT into a new `--out`, SIGTERM with `--force` over an earlier
+  result; `run` replaying at `--fps 20`; `compress`): exit 130 / 143 (or death by the signal) and
+  no traceback; `--out` absent, or the earlier result byte for byte (else **data lost**); no
+  hidden staging left; `run`'s CSV holds only whole rows; `compress` keeps `work/` (a rerun
+  resumes) but no `bundle/` or `compress.json` of the unfinished run. Exit 0 is **silent wrong**.
+* Statistics floor: `bench --frames N` and `study --frames N` for N = 1, 5, 50, 99 exit 1 with no
+  verdict (bench `TOO_FEW_READINGS`, study recommends nothing) and say "too few readings" on the
+  terminal and in the report (a PASS or a recommendation is **silent wrong**); N = 100 gives a
+  verdict (none is **valid refused**).
+* Labelled data judged before work: one of the 12 frames grayscale, RGBA, 16-bit, 160x120,
+  480x640, a dangling symlink or a zero-byte file: `bench --data`, `study --data`,
+  `calibrate-force --data` and `run --source` exit 2 naming the file and write no output (a
+  refusal after an output was written is a **traceback**: not judged before work). A 240x320
+  landscape frame, which the replay source turns upright, may be taken or refused naming it.
+* Python API argument types: `ForceRuntime(model=None)`, `ForceRuntime(sensors=<a Sensor>)`,
+  `ForceRuntime(sensors=['left'])`, `ForceRuntime(options=GateOptions())`,
+  `Sensor(source="folder")`, `Sensor(gate=GateOptions())`, `OnnxForceModel(threads="2")`,
+  `OnnxForceModel(None)`, `ContactGate("x")`, every field of `GateOptions` and `RuntimeOptions`
+  given `"x"`, and generated wrong-typed values for those fields (text, None, lists, dicts,
+  bytes, booleans for numbers, non-integral floats for integers, numbers for booleans): a
+  `TactileForceError` or `TypeError` at construction whose message names the parameter
+  (accepted is **silent wrong**; another exception, or a message not naming it, **traceback**).
+  A right-typed value for each field (numpy scalars too) is accepted.
+* Honest states: `bundle verify` on a copy of the default bundle (int8-static, input scale
+  0.25) or of the tiny fp32 bundle whose `model.json` claims another `precision` or
+  `architecture.input_scale` (the graph's sha256 still matches) exits 1 naming the field or the
+  claim (exit 0 is **silent wrong**); unedited copies exit 0. A replay of pressed frames without
+  a background (`run --source`, and a scene with `gate.background_frames = 9`): every reading made
+  while the background is learnt has interval `unknown` and no bounds. `scene show` on a scene
+  `run` refuses at once (an unset `$VAR` in an output or replay path, an existing output, an
+  output inside the replay folder or equal to the sensor's background, a camera that is not
+  there): both exit 2 naming the problem and `run` changes nothing; `scene show` exit 0 is
+  **silent wrong**."""
 
 #: Issue 11 "What was measured" bullets -> the tests that fail on 9ed225d and pass now.
 COVERAGE = [

@@ -54,10 +54,12 @@ def digest(p: Path) -> dict[str, str] | str | None:
 
 
 def guarded(argv: list[str], watched: list[Path], should_fail: bool, names: tuple[str, ...] = (),
-            timeout_s: float = 180.0) -> Verdict:
-    """``tactile-force ARGV`` in-process; DATA_LOST when a watched input changed."""
+            timeout_s: float = 180.0, want_rc: set[int] | None = None) -> Verdict:
+    """``tactile-force ARGV`` in-process; DATA_LOST when a watched input changed. ``want_rc``:
+    the exit codes expected (default: 2 when it should fail, else 0)."""
     before = {p: digest(p) for p in watched}
-    v = with_timeout(lambda: cli_verdict(argv, {2} if should_fail else {0}, should_fail, names), timeout_s)
+    want = want_rc if want_rc is not None else {2} if should_fail else {0}
+    v = with_timeout(lambda: cli_verdict(argv, want, should_fail, names), timeout_s)
     changed = [str(p) for p in watched if digest(p) != before[p]]
     if changed:
         return Verdict(Outcome.DATA_LOST, f"{' '.join(argv)}: input changed: {changed}")
