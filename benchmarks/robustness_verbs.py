@@ -256,7 +256,7 @@ def _result_cases(inputs: Inputs, spec: Verb) -> list[Case]:
         return _with_leftovers(guarded(spec.argv(inputs, out), [out, *reads], True, ("--out", "--force")), out)
 
     def replaced() -> Verdict:
-        from tactile_force.edge.atomic import foreign_files
+        from tactile_force.edge.files.atomic import foreign_files
 
         out = earlier()
         before = (digest(out), out.stat().st_ino)  # a same-seed result may repeat the bytes, not the folder
@@ -429,7 +429,7 @@ def _no_finished_look(out: Path) -> str:
     """compress keeps work/ (a rerun resumes) but never a bundle or summary of an unfinished run,
     nor a hidden temporary file."""
     try:
-        from tactile_force.edge.atomic import OUTPUT_MARK
+        from tactile_force.edge.files.atomic import OUTPUT_MARK
     except ImportError:  # a package from before result records
         OUTPUT_MARK = ""
     made = [n for n in ("bundle", "compress.json") if (out / n).exists()]
@@ -708,7 +708,7 @@ def api_cases(inputs: Inputs, examples: int) -> Cases:
     given "x"), a right-typed value for each field, then ``examples`` generated wrong-typed
     values: a TactileForceError (or TypeError) naming the parameter, at construction."""
     from tactile_force.edge.gate import ContactGate, GateOptions
-    from tactile_force.edge.inference import OnnxForceModel
+    from tactile_force.edge.model import OnnxForceModel
     from tactile_force.edge.runtime import ForceRuntime, Sensor
     from tactile_force.edge.sources import ReplayFolderSource
 

@@ -54,14 +54,16 @@ def run_demo(source, bundle: str | os.PathLike, out_dir: str | os.PathLike, thre
     rt = ForceRuntime([Sensor("digit", source, ContactGate())], model, RuntimeOptions(report_stale=False))
     readings: list[ForceReading] = []
     csv_path = out / "readings.csv"
-    with CsvWriter(csv_path) as csv_out:
-        def keep(r: ForceReading) -> None:
-            readings.append(r)
-            if echo and (Flags.NO_CONTACT not in r.flags) and r.frame_index % every == 0:
-                echo(format_reading(r))
+    try:
+        with CsvWriter(csv_path) as csv_out:
+            def keep(r: ForceReading) -> None:
+                readings.append(r)
+                if echo and (Flags.NO_CONTACT not in r.flags) and r.frame_index % every == 0:
+                    echo(format_reading(r))
 
-        stats = rt.run([csv_out], on_reading=keep)
-    rt.close()
+            stats = rt.run([csv_out], on_reading=keep)
+    finally:  # also on Ctrl-C: the source's render thread must end before the interpreter does
+        rt.close()
     cnn = cnn_readings(readings)
     err = None
     if cnn:

@@ -198,17 +198,20 @@ def _check_depth_mapping(scene) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
+    from ..files.guard import OutputKind, check_output
     from ..scene import build_scene, save_scene
+    from ..scene.preflight import scene_inputs
 
     scene = _run_scene(args)
+    inputs = [(f, p) for f, p in [*scene_inputs(scene, args.scene), ("--source", args.source),
+                                  ("--bundle", args.bundle), ("--background", args.background),
+                                  ("--depth-mapping", getattr(args, "depth_mapping", None))]
+              if p not in (None, "default")]
+    force = getattr(args, "force", False)
+    if (plot := replay_plot_path(args.out, scene)) is not None:  # drawn when the replay has truth: an output too
+        check_output(plot, inputs, force=force, kind=OutputKind.FILE, flag="the force-vs-time plot")
     if args.save_scene:
-        from ..files.guard import OutputKind, check_output
-        from ..scene.preflight import scene_inputs
-
-        inputs = [*scene_inputs(scene, args.scene), ("--source", args.source), ("--bundle", args.bundle),
-                  ("--background", args.background), ("--depth-mapping", getattr(args, "depth_mapping", None))]
-        check_output(args.save_scene, [(f, p) for f, p in inputs if p not in (None, "default")],
-                     force=getattr(args, "force", False), kind=OutputKind.FILE, flag="--save-scene")
+        check_output(args.save_scene, inputs, force=force, kind=OutputKind.FILE, flag="--save-scene")
         print(f"wrote scene {save_scene(scene, args.save_scene)}", file=sys.stderr)
     built = build_scene(scene, warn=lambda m: print(f"\nwarning: {m}", file=sys.stderr))
     for n in built.notes:

@@ -142,6 +142,8 @@ def check_image_file(path: Path, channels: int = 3, shape: tuple[int, int, int] 
     """
     if (problem := _open_problem(path)) is not None:
         raise DatasetError(f"{path}: {problem}; expected an 8-bit " + _what(channels))
+    if path.stat().st_size == 0:  # nothing to decode: as missing as a dangling link
+        raise DatasetError(f"{path}: an empty file (0 bytes); expected an 8-bit " + _what(channels))
     try:
         with open(path, "rb") as fh:
             layout = _png_layout(fh.read(26))

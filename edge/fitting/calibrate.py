@@ -207,6 +207,8 @@ def calibrate_bundle(bundle_path: str | os.PathLike, data: str | os.PathLike, ou
 
     inputs = [("bundle", bundle_path), ("--data", data), ("--background", background)]
     dest = check_output(out, inputs, force=overwrite, kind=OutputKind.BUNDLE)
+    if plot is not None:  # an output too: a user's file of that name is replaced only with --force
+        check_output(plot, inputs, force=overwrite, kind=OutputKind.FILE, flag="the calibration plot")
     src = load_bundle(bundle_path)
     model = OnnxForceModel(src, threads=1, calibrate=False)
     frames = read_labelled(data)
