@@ -6,7 +6,6 @@ import re
 from pathlib import Path
 
 import pytest
-
 from tactile_force.edge.cli import COMMANDS
 
 REPO = Path(__file__).resolve().parents[1]

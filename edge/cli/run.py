@@ -164,7 +164,9 @@ def _run_scene(args: argparse.Namespace):
                              outputs=args.out, ros2=args.ros2, name=args.name, fps=args.fps,
                              mcap_frames=getattr(args, "mcap_frames", False),
                              depth_mapping=getattr(args, "depth_mapping", None))
-    if scene.sensors[0].kind.live:
+    from ..scene.kinds import kind_of
+
+    if kind_of(scene.sensors[0]).live:
         scene.outputs[0].live = True
     _check_depth_mapping(scene)
     _refuse(run_refusals(scene))

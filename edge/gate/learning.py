@@ -17,16 +17,12 @@ when :meth:`RelearnPolicy.due` says so.
 from __future__ import annotations
 
 import logging
-from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
 
-from .checks import borders_changed
-
-if TYPE_CHECKING:
-    from .checks import Reference
-    from .contact_gate import GateOptions
+from .checks import Reference, borders_changed
+from .options import GateOptions
 
 #: the gate's messages keep the gate's logger name
 _log = logging.getLogger(f"{__package__}.contact_gate")  # the gate's own logger

@@ -9,7 +9,8 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import BundleError, SceneError
-from ..gate.contact_gate import GateOptions
+from ..gate.options import GateOptions
+from .kinds import kind_of
 from .model import OutputSpec, Scene, default_bundle_path
 from .read import _out_path, output_problem
 
@@ -43,7 +44,7 @@ def scene_to_toml(scene: Scene) -> str:
     if depth := scene.depth.given():
         lines += ["", "[depth]"] + [f"{k} = {_toml_value(v)}" for k, v in depth.items()]
     for s in scene.sensors:
-        kind = s.kind
+        kind = kind_of(s)
         lines += ["", "[[sensor]]", f"name = {_toml_value(s.name)}", f"source = {_toml_value(s.source)}"]
         for k in kind.key_names:
             v = getattr(s, k)
@@ -124,7 +125,7 @@ def describe_scene(scene: Scene) -> list[str]:
                      f"within {scene.deadline_ms:g} ms")
     for s in scene.sensors:
         missing = "  [MISSING]" if s.path is not None and not s.path.exists() else ""
-        lines.append(f"  source:{s.name:<6} {s.kind.describe(s)}{missing}")
+        lines.append(f"  source:{s.name:<6} {kind_of(s).describe(s)}{missing}")
         bg = (f"background from {s.background}" if s.background
               else f"background = mean of first {s.gate.background_frames} frames (learnt: keep the sensor untouched)")
         lines.append(f"  gate:{s.name:<8} threshold {s.gate.threshold:g}, on/off area {s.gate.on_area_frac:g}/"

@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 from ..errors import SceneError, SourceError
-from ..gate.contact_gate import GateOptions
+from ..gate.options import GateOptions
 from ..typed_json import check
 from .model import Clock, SensorKeys, SensorSpec
 
@@ -212,8 +212,13 @@ SOURCES = tuple(SOURCE_KINDS)
 
 
 # -- building -----------------------------------------------------------------------------
+def kind_of(s: SensorSpec) -> SourceKind:
+    """The source kind of a sensor table (its keys, gate preset, opener and description)."""
+    return SOURCE_KINDS[s.source]
+
+
 def open_source(s: SensorSpec, clock: Clock | None = None):
     """Open the FrameSource a sensor spec names (device libraries only for that device)."""
     import time
 
-    return s.kind.opener(s, clock or time.monotonic_ns)
+    return kind_of(s).opener(s, clock or time.monotonic_ns)

@@ -11,13 +11,10 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal
+from typing import Any, Literal
 
-from ..gate.contact_gate import GateOptions
+from ..gate.options import GateOptions
 from ..typed_json import check
-
-if TYPE_CHECKING:
-    from .kinds import SourceKind
 
 Backend = Literal["cpu", "oak"]
 OutputKind = Literal["stdout", "csv", "jsonl", "mcap", "ros2"]
@@ -60,7 +57,7 @@ def shipped_bundles() -> dict[str, Path]:
 @dataclass
 class SensorSpec:
     """One [[sensor]] table after validation. Which fields a kind uses, and their
-    defaults, come from its :class:`SourceKind` entry; paths are absolute."""
+    defaults, come from its source kind (:func:`.kinds.kind_of`); paths are absolute."""
 
     name: str
     source: str
@@ -73,12 +70,6 @@ class SensorSpec:
     seed: int = 0
     n_grasps: int = 3
     hotplug: bool = True
-
-    @property
-    def kind(self) -> SourceKind:
-        from .kinds import SOURCE_KINDS
-
-        return SOURCE_KINDS[self.source]
 
 
 def ros2_topic_ok(topic: str) -> bool:

@@ -23,6 +23,7 @@ import os
 from pathlib import Path
 
 from ..errors import SourceError, TactileForceError
+from .kinds import kind_of
 from .model import Scene, SensorSpec
 
 
@@ -118,7 +119,7 @@ def source_problems(scene: Scene) -> list[str]:
                 VideoFileSource(s.path, name=s.name).close()
         except SourceError as exc:
             out.append(f"{where}.path: {exc}")
-        if s.kind.live and (why := _device_problem(s)) is not None:
+        if kind_of(s).live and (why := _device_problem(s)) is not None:
             out.append(f"{where}: {why}")
     return out
 

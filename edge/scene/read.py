@@ -20,7 +20,7 @@ else:  # Python 3.10: the same parser from PyPI (a core dependency there)
     import tomli as tomllib
 
 from ..errors import SceneError
-from ..gate.contact_gate import GateOptions
+from ..gate.options import GateOptions
 from ..typed_json import Check, TypedJsonError, expand_path, from_json, read_value
 from .kinds import SOURCE_KINDS, SOURCES
 from .model import (

@@ -272,8 +272,8 @@ def test_bench_reports_the_precision_the_graph_holds_not_the_manifests(tmp_path)
     and the note says the manifest claims otherwise."""
     pytest.importorskip("onnx", reason="building the fp32 test graph needs the 'onnx' package (dev extra)")
     from tactile_force.benchmarks.bench import bench_bundle
-    from tactile_force.edge.bundle.store import write_bundle
     from tactile_force.edge.bundle.graph_facts import bundle_precision
+    from tactile_force.edge.bundle.store import write_bundle
 
     from tests.edge.conftest import mean_manifest, mean_model_bytes
 

@@ -7,10 +7,11 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from bridge.fakes import FakeHidDevice  # noqa: E402
 from tactile_force.edge.data.dataset import AuthorsDataset  # noqa: E402
 from tactile_force.edge.frames import FrameSource, TimedFrame  # noqa: E402
 from tactile_force.firmware_bridge import HidScale, RecordOptions, record  # noqa: E402
+
+from bridge.fakes import FakeHidDevice  # noqa: E402
 
 
 def scale_report(grams: int) -> list[int]:

@@ -3,7 +3,6 @@
 import cv2
 import numpy as np
 import pytest
-
 from tactile_force.edge.errors import SourceError
 from tactile_force.firmware_bridge import DigitOptions, DigitSource, intensity_code, reset_usb_device
 from tactile_force.firmware_bridge.sysfs import UsbDeviceInfo

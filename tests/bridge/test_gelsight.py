@@ -5,15 +5,21 @@ still finding every labelled ball press on the source's output."""
 import cv2
 import numpy as np
 import pytest
-
 from tactile_force.edge import ContactGate, GateOptions
 from tactile_force.edge.errors import SceneError, SourceError
 from tactile_force.edge.scene import describe_scene, open_source, parse_scene
 from tactile_force.edge.sources import StreamLost
-from tactile_force.firmware_bridge import (SDK_CROP_FRACTION, GelSightMiniOptions, GelSightMiniSource, crop_box,
-                                           discover, find_gelsight_mini)
+from tactile_force.firmware_bridge import (
+    SDK_CROP_FRACTION,
+    GelSightMiniOptions,
+    GelSightMiniSource,
+    crop_box,
+    discover,
+    find_gelsight_mini,
+)
 
 from tests.conftest import shared_data
+
 from .fakes import FakeCamera, FakeSysfsDevice, make_fake_sysfs
 
 RED, BLUE = (0, 0, 255), (255, 0, 0)

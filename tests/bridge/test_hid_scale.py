@@ -3,7 +3,6 @@
 import math
 
 import pytest
-
 from tactile_force.edge.errors import SourceError
 from tactile_force.firmware_bridge import G, HidScale, ScaleReportError, ScaleStatus, parse_scale_report
 

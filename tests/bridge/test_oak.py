@@ -7,9 +7,8 @@ import tarfile
 
 import numpy as np
 import pytest
-
-from tactile_force.edge.bundle.store import write_bundle
 from tactile_force.edge.bundle.manifest import InputKind, InputSpec, Manifest, OutputSpec
+from tactile_force.edge.bundle.store import write_bundle
 from tactile_force.edge.errors import AcceleratorUnavailableError, BundleError, FrameError
 from tactile_force.firmware_bridge import OakForceModel, OakOptions, build_nn_archive
 

@@ -9,7 +9,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from tactile_force.edge.data.dataset import AuthorsDataset
 from tactile_force.edge.errors import DatasetError
 from tactile_force.firmware_bridge import G, HidScale, RecordOptions, prepare_output, record

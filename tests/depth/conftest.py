@@ -14,7 +14,6 @@ def paper_mlp_path():
 def fots_lut_path(tmp_path_factory):
     """Our LUT calibrated on the real FOTS DIGIT ball presses (circles detected)."""
     import cv2
-
     from tactile_force.edge.depth.calibration import LUTOptions, Press, detect_press_circle, fit_lut
 
     folder = shared_data("fots_digit", "ball_presses")

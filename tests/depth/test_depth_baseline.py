@@ -1,9 +1,8 @@
 import numpy as np
 import pytest
-
 from tactile_force.edge.data.dataset import AuthorsDataset
-from tactile_force.edge.depth import MaxDeformationBaseline
 from tactile_force.edge.data.metrics import relative_error
+from tactile_force.edge.depth import MaxDeformationBaseline
 
 
 def test_baseline_fits_authors_depth(aurova_dir, tmp_path):

@@ -2,11 +2,18 @@
 
 import numpy as np
 import pytest
-
 from tactile_force.edge.cli import main as cli_main
 from tactile_force.edge.depth import NormalLUT, PoissonSolver, normals_to_gradients
-from tactile_force.edge.depth.calibration import (Circle, Press, cap_depth_px, detect_press_circle, evaluate_lut,
-                                                  fit_lut, sphere_normals)
+from tactile_force.edge.depth.calibration import (
+    Circle,
+    Press,
+    cap_depth_px,
+    detect_press_circle,
+    evaluate_lut,
+    fit_lut,
+    sphere_normals,
+)
+
 from tests.conftest import shared_data
 
 MM_PER_PX = 0.0295  # GelSight Mini (Taxim calibration data)
@@ -76,7 +83,6 @@ def test_cli_reports_missing_background(tmp_path, capsys):
 def test_cli_writes_the_circle_image(tmp_path, capsys):
     """The image next to the output shows every press with its circle where it was found."""
     import cv2
-
     from tactile_force.edge.cli.calibrate_depth import load_presses
 
     src = shared_data("gelsight_mini_ball_presses.npz")

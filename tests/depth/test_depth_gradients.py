@@ -1,5 +1,4 @@
 import numpy as np
-
 from tactile_force.edge.depth.gradients import GradientGuards, normals_to_gradients
 
 

@@ -16,10 +16,10 @@ Tolerances (stated here, measured when written):
 
 import numpy as np
 import pytest
+from tactile_force.edge.bundle.manifest import DepthRecord, FrameReduction, Reduction
 from tactile_force.edge.depth import DepthOptions, DepthStage
 from tactile_force.edge.depth.poisson import PoissonSolver, forward_gradients
 from tactile_force.edge.depth.stage import _midpoint_slopes
-from tactile_force.edge.bundle.manifest import DepthRecord, FrameReduction, Reduction
 
 H, W, K = 320, 240, 4
 MAPPING = "edge/assets/virtual_digit_depth.npz"

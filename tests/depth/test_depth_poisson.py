@@ -2,7 +2,6 @@
 
 import numpy as np
 import pytest
-
 from tactile_force.edge.depth.poisson import PoissonSolver, forward_gradients
 
 H, W = 320, 240

@@ -3,8 +3,8 @@
 import cv2
 import numpy as np
 import pytest
-
 from tactile_force.edge.depth import DepthOptions, DepthStage, MappingError
+
 from tests.conftest import shared_data
 
 

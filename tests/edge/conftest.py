@@ -11,9 +11,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-
-from tactile_force.edge.bundle.store import write_bundle
 from tactile_force.edge.bundle.manifest import ErrorReport, InputKind, InputSpec, Manifest, OutputSpec, Provenance
+from tactile_force.edge.bundle.store import write_bundle
 
 
 def mean_model_bytes(scale: float, bias: float, with_depth: bool, depth_scale: float = 0.0,

@@ -9,7 +9,7 @@ import logging
 import numpy as np
 import pytest
 from tactile_force.edge.gate.learning import RelearnPolicy
-from tactile_force.edge.gate.contact_gate import GateOptions
+from tactile_force.edge.gate.options import GateOptions
 
 THUMB = np.full((20, 15, 3), 100, np.uint8)
 ALL_FIT = np.full((20, 15), 255, np.uint8)
@@ -105,8 +105,8 @@ def test_gate_learns_from_the_first_background_frames_live():
 
 
 def test_refresh_blends_a_frame_in_and_renews_the_reference():
-    from tactile_force.edge.gate.learning import refresh
     from tactile_force.edge.gate.checks import Reference
+    from tactile_force.edge.gate.learning import refresh
 
     bg = np.full((80, 60, 3), 100.0, np.float32)
     bg_thumb = np.full((20, 15, 3), 100.0, np.float32)

@@ -10,11 +10,10 @@ import sys
 import textwrap
 
 import pytest
-
 from tactile_force.edge import BundleError, load_bundle
+from tactile_force.edge.bundle.manifest import FrameReduction
 from tactile_force.edge.bundle.store import stale_partials, write_bundle
 from tactile_force.edge.model.onnx_model import OnnxForceModel
-from tactile_force.edge.bundle.manifest import FrameReduction
 from tactile_force.edge.scene import default_bundle_path
 
 WRITER = textwrap.dedent("""

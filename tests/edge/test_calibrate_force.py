@@ -16,6 +16,8 @@ from tactile_force.edge import (
     default_bundle_path,
     load_bundle,
 )
+from tactile_force.edge.bundle.force_calibration import ForceCalibration
+from tactile_force.edge.cli import main as cli_main
 from tactile_force.edge.fitting.force_calibration import (
     CalibrationLimits,
     CalibrationRefused,
@@ -24,8 +26,6 @@ from tactile_force.edge.fitting.force_calibration import (
     pav,
     spearman,
 )
-from tactile_force.edge.cli import main as cli_main
-from tactile_force.edge.bundle.force_calibration import ForceCalibration
 from tactile_force.edge.gate.contact_gate import ContactGate
 from tactile_force.edge.model.onnx_model import OnnxForceModel
 from tactile_force.edge.runtime.loop import ForceRuntime, Sensor

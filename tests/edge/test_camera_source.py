@@ -5,9 +5,9 @@ newest-frame grabber thread."""
 import cv2
 import numpy as np
 import pytest
-
 from tactile_force.edge.errors import OptionsError, SourceError
 from tactile_force.edge.sources import CameraSource, StreamLost
+
 from tests.bridge.fakes import FakeCamera, landscape
 
 

@@ -6,7 +6,6 @@ import subprocess
 import sys
 
 import pytest
-
 from tactile_force.edge.scene import default_bundle_path
 
 NO_TORCH = "import sys; sys.modules['torch'] = None; sys.modules['onnx'] = None; from tactile_force.edge.cli import main; "

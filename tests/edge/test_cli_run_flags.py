@@ -15,9 +15,9 @@ import pytest
 from tactile_force.edge.cli import main as cli_main
 from tactile_force.edge.cli.replay_report import PLOT_NAME, _plot_cv
 from tactile_force.edge.cli.run import LearningStatus
-from tactile_force.edge.report.plots import nice_ticks
 from tactile_force.edge.errors import SceneError
 from tactile_force.edge.reading import Flags, ForceReading
+from tactile_force.edge.report.plots import nice_ticks
 from tactile_force.edge.scene import load_scene, parse_scene, scene_from_flags
 
 from tests.conftest import shared_data

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import cv2
 import numpy as np
-
 from tactile_force.edge.frames import exposure_problem
+
 from tests.conftest import shared_data
 
 

@@ -7,7 +7,6 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
-from tactile_force.edge.gate.contact_gate import ContactGate
 from tactile_force.edge.gate.checks import (
     Reference,
     borders_changed,
@@ -16,6 +15,7 @@ from tactile_force.edge.gate.checks import (
     is_uniform,
     motion_explained,
 )
+from tactile_force.edge.gate.contact_gate import ContactGate
 from tactile_force.edge.sources import load_background
 
 from tests.conftest import shared_data

@@ -16,11 +16,11 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from tactile_force.edge.bundle.interval import ForceInterval, IntervalBin, IntervalError
+from tactile_force.edge.bundle.manifest import manifest_from_json
 from tactile_force.edge.bundle.store import load_bundle, write_bundle
 from tactile_force.edge.errors import BundleError
-from tactile_force.edge.bundle.interval import ForceInterval, IntervalBin, IntervalError
 from tactile_force.edge.fitting.interval import conformal_quantile, fit_interval, interval_coverage, min_points
-from tactile_force.edge.bundle.manifest import manifest_from_json
 from tactile_force.edge.outputs import CsvWriter, JsonlWriter
 from tactile_force.edge.outputs.files import format_reading
 from tactile_force.edge.reading import Flags, ForceReading, IntervalState

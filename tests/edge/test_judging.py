@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 from tactile_force.edge.bundle.data_stats import DataStats
 from tactile_force.edge.gate.contact_gate import GateResult
-from tactile_force.edge.runtime.judging import EstimateJudge, gate_verdict
 from tactile_force.edge.reading import MAX_VALID_FORCE_N, MIN_VALID_FORCE_N, Flags
+from tactile_force.edge.runtime.judging import EstimateJudge, gate_verdict
 
 ROWS, COLS = 20, 15
 

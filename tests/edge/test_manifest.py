@@ -10,9 +10,15 @@ import subprocess
 import sys
 
 import pytest
-
 from tactile_force.edge import BundleError, load_bundle, read_manifest
-from tactile_force.edge.bundle.manifest import FORMAT_VERSION, InputKind, Manifest, Precision, Variant, manifest_from_json
+from tactile_force.edge.bundle.manifest import (
+    FORMAT_VERSION,
+    InputKind,
+    Manifest,
+    Precision,
+    Variant,
+    manifest_from_json,
+)
 from tactile_force.edge.scene import default_bundle_path
 from tactile_force.edge.typed_json import to_json
 

@@ -20,13 +20,13 @@ pytest.importorskip("cyclonedds", reason="MCAP output serialises CDR with cyclon
 
 from mcap.reader import make_reader  # noqa: E402
 from tactile_force.edge.outputs.mcap_log import McapWriter, read_messages  # noqa: E402
-from tactile_force.edge.reading import Flags, ForceReading, StageLatency  # noqa: E402
 from tactile_force.edge.outputs.ros2_messages import (  # noqa: E402
     CompressedImage,
     DiagnosticArray,
     WrenchStamped,
 )
 from tactile_force.edge.outputs.ros2_names import StampClock  # noqa: E402
+from tactile_force.edge.reading import Flags, ForceReading, StageLatency  # noqa: E402
 
 
 def _readings() -> list[ForceReading]:

@@ -11,9 +11,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 from tactile_force.edge import BundleError, ContactGate, OnnxForceModel, load_bundle
+from tactile_force.edge.bundle.manifest import FORMAT_VERSION, FrameReduction, Reduction, manifest_from_json
 from tactile_force.edge.errors import FrameError
 from tactile_force.edge.frames import FRAME_SHAPE
-from tactile_force.edge.bundle.manifest import FORMAT_VERSION, FrameReduction, Reduction, manifest_from_json
 from tactile_force.edge.gate.reduce import FrameReducer, default_reduction, reduce_frames
 from tactile_force.edge.runtime.loop import ForceRuntime, RuntimeOptions, Sensor
 from tactile_force.edge.scene import default_bundle_path

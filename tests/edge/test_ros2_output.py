@@ -28,7 +28,6 @@ from cyclonedds.qos import Policy, Qos  # noqa: E402
 from cyclonedds.sub import DataReader  # noqa: E402
 from cyclonedds.topic import Topic  # noqa: E402
 from cyclonedds.util import duration  # noqa: E402
-from tactile_force.edge.reading import Flags, ForceReading, StageLatency  # noqa: E402
 from tactile_force.edge.outputs.ros2_messages import DiagnosticArray, WrenchStamped  # noqa: E402
 from tactile_force.edge.outputs.ros2_names import StampClock, dds_topic, ros_topic  # noqa: E402
 from tactile_force.edge.outputs.ros2_topic import (  # noqa: E402
@@ -37,6 +36,7 @@ from tactile_force.edge.outputs.ros2_topic import (  # noqa: E402
     dds_qos,
     domain_from_env,
 )
+from tactile_force.edge.reading import Flags, ForceReading, StageLatency  # noqa: E402
 
 SENSOR_QOS = Qos(Policy.Reliability.BestEffort, Policy.History.KeepLast(50), Policy.Durability.Volatile)
 

@@ -8,9 +8,9 @@ from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
+from tactile_force.edge.bundle.manifest import DepthRecord
 from tactile_force.edge.depth import DepthOptions
 from tactile_force.edge.errors import SceneError
-from tactile_force.edge.bundle.manifest import DepthRecord
 from tactile_force.edge.runtime.loop import ASSETS_DIR, depth_options_for
 from tactile_force.edge.scene import DepthSettings, load_scene, parse_scene, scene_to_toml
 
@@ -114,8 +114,8 @@ def test_the_manifest_depth_record_is_checked_when_read(key, value, message):
     import copy
     import json
 
-    from tactile_force.edge.errors import BundleError
     from tactile_force.edge.bundle.manifest import manifest_from_json
+    from tactile_force.edge.errors import BundleError
     from tactile_force.edge.scene import shipped_bundles
 
     if "d" not in shipped_bundles():

@@ -14,8 +14,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-from tactile_force.edge.cli import scene as cli_scene
 from tactile_force.edge.cli import main as cli_main
+from tactile_force.edge.cli import scene as cli_scene
 from tactile_force.edge.errors import SceneError
 from tactile_force.edge.scene import load_scene
 

@@ -7,7 +7,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from tactile_force.edge import load_bundle
 from tactile_force.edge.cli import main as cli_main
 from tactile_force.edge.gate.contact_gate import ContactGate

@@ -6,7 +6,6 @@ import json
 
 import pytest
 import torch
-
 from tactile_force.edge.cli import main
 from tactile_force.export import ModelSpec, build_model, save_checkpoint
 

@@ -7,7 +7,6 @@ import onnx
 import onnxruntime as ort
 import pytest
 import torch
-
 from tactile_force.edge.model.onnx_model import OnnxForceModel
 from tactile_force.export import CalibrationData, ExportOptions, ForceNet, ModelSpec, build_model, export_bundle
 from tactile_force.export.preprocess import fold_input_scaling, input_convs

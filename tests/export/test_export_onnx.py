@@ -7,11 +7,20 @@ import numpy as np
 import onnxruntime as ort
 import pytest
 import torch
-
 from tactile_force.edge.bundle.store import load_bundle
 from tactile_force.edge.errors import BundleError
-from tactile_force.export import (CalibrationData, ExportOptions, ForceNet, ModelSpec, ParityError, build_model,
-                                  count_macs, export_bundle, model_from_checkpoint)
+from tactile_force.export import (
+    CalibrationData,
+    ExportOptions,
+    ForceNet,
+    ModelSpec,
+    ParityError,
+    build_model,
+    count_macs,
+    export_bundle,
+    model_from_checkpoint,
+)
+
 from tests.export.authors_format import save_authors_checkpoint
 
 
@@ -109,8 +118,8 @@ def test_count_macs_matches_torch_conv_and_linear_hooks():
         net(torch.zeros(1, 320, 240, 3, dtype=torch.uint8))
     for h in handles:
         h.remove()
-    from tactile_force.export.onnx_export import to_onnx
     import onnx
+    from tactile_force.export.onnx_export import to_onnx
 
     macs = count_macs(onnx.load_from_string(to_onnx(net)))
     assert macs.total == sum(hooked)

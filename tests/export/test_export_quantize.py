@@ -11,10 +11,20 @@ import onnx
 import onnxruntime as ort
 import pytest
 import torch
-
 from tactile_force.edge.data.metrics import error_stats
-from tactile_force.export import (CalibrationData, CalibrationError, ExportOptions, QuantizeError, QuantizeOptions,
-                                  Preprocess, build_model, export_bundle, op_counts, ort_optimized_ops, quantize_bundle)
+from tactile_force.export import (
+    CalibrationData,
+    CalibrationError,
+    ExportOptions,
+    Preprocess,
+    QuantizeError,
+    QuantizeOptions,
+    build_model,
+    export_bundle,
+    op_counts,
+    ort_optimized_ops,
+    quantize_bundle,
+)
 
 
 def _no_partial(parent, name):
@@ -199,6 +209,7 @@ def test_bad_mode_and_non_fp32_source(int8, tmp_path, aurova):
 
 def test_quantize_with_a_background_records_data_statistics(compact, module_tmp, aurova):
     from tactile_force.edge import load_bundle
+
     from tests.conftest import shared_data
 
     bg = shared_data("digit_backgrounds", "aurova_background_b.png")

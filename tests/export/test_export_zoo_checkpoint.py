@@ -9,9 +9,17 @@ import cv2
 import numpy as np
 import pytest
 import torch
-
-from tactile_force.export import (CheckpointError, ForceNet, ModelSpec, Preprocess, UnknownVariantError,
-                                  build_model, load_checkpoint, model_from_checkpoint, save_checkpoint)
+from tactile_force.export import (
+    CheckpointError,
+    ForceNet,
+    ModelSpec,
+    Preprocess,
+    UnknownVariantError,
+    build_model,
+    load_checkpoint,
+    model_from_checkpoint,
+    save_checkpoint,
+)
 
 from tests.export.authors_format import authors_keys, random_state, save_authors_checkpoint
 

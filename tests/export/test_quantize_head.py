@@ -7,8 +7,14 @@ import onnx
 import onnxruntime as ort
 import pytest
 import torch
-
-from tactile_force.export import CalibrationData, ExportOptions, QuantizeOptions, build_model, export_bundle, quantize_bundle
+from tactile_force.export import (
+    CalibrationData,
+    ExportOptions,
+    QuantizeOptions,
+    build_model,
+    export_bundle,
+    quantize_bundle,
+)
 from tactile_force.export.quantize import head_input_nodes
 
 

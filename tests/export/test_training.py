@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
-
 from tactile_force.edge.errors import OptionsError
 from tactile_force.export import ModelSpec
 from tactile_force.export.preprocess import ForceNet

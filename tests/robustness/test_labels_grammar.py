@@ -14,8 +14,8 @@ from pathlib import Path
 import pytest
 from tactile_force.edge.cli import main as cli_main
 from tactile_force.edge.data.dataset import AuthorsDataset
-from tactile_force.edge.errors import DatasetError
 from tactile_force.edge.data.labels import LabelError, read_force_file
+from tactile_force.edge.errors import DatasetError
 from tactile_force.edge.scene import default_bundle_path
 
 from benchmarks.robustness import expected_label

@@ -12,8 +12,8 @@ import time
 from pathlib import Path
 
 import pytest
-from tactile_force.edge.files.atomic import OUTPUT_MARK, foreign_files, staged_folder
 from tactile_force.edge.cli import main
+from tactile_force.edge.files.atomic import OUTPUT_MARK, foreign_files, staged_folder
 
 
 def test_staged_folder_publishes_whole_or_leaves_the_previous_result(tmp_path):

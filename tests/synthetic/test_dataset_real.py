@@ -6,7 +6,6 @@ import shutil
 
 import numpy as np
 import pytest
-
 from tactile_force.edge import AuthorsDataset, DatasetError
 
 IDS = [1500, 1502, 1504, 1506, 1508, 1510, 1512, 1514, 1516, 1520, 1524]

@@ -10,9 +10,17 @@ import json
 
 import numpy as np
 import pytest
-
-from tactile_force.edge import (AuthorsDataset, DatasetOptions, OnnxForceModel, default_bundle_path, error_stats,
-                                generate_dataset, load_bundle, paper_split, sha256_file)
+from tactile_force.edge import (
+    AuthorsDataset,
+    DatasetOptions,
+    OnnxForceModel,
+    default_bundle_path,
+    error_stats,
+    generate_dataset,
+    load_bundle,
+    paper_split,
+    sha256_file,
+)
 
 
 @pytest.fixture(scope="module")

@@ -7,11 +7,17 @@ import json
 
 import numpy as np
 import pytest
-
 from tactile_force.edge import AuthorsDataset, DatasetError
 from tactile_force.edge.cli import main as cli_main
-from tactile_force.edge.synthetic import (DatasetOptions, ForceDistribution, generate_dataset, indenter_split,
-                                          paper_indenter_names, paper_split, split_ids)
+from tactile_force.edge.synthetic import (
+    DatasetOptions,
+    ForceDistribution,
+    generate_dataset,
+    indenter_split,
+    paper_indenter_names,
+    paper_split,
+    split_ids,
+)
 
 META_KEYS = ("indenter", "shape", "scale", "size_mm", "stiffness", "location", "center_px", "rotation_deg",
              "force_n", "phase", "grasp", "depth_mm", "contact_area_px")

@@ -5,7 +5,6 @@ from __future__ import annotations
 import math
 
 import pytest
-
 from tactile_force.edge.data.metrics import error_report, error_stats, force_bin_label, relative_error
 
 

@@ -7,7 +7,6 @@ import math
 
 import numpy as np
 import pytest
-
 from tactile_force.edge.synthetic import ContactSpec, VirtualDigit, VirtualDigitOptions, dome_height_mm
 from tactile_force.edge.synthetic.mechanics import GelOptions, hertz_depth, penalty_depth
 

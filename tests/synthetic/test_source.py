@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from tactile_force.edge import FrameSource, TimedFrame
 from tactile_force.edge.synthetic import PHASES, VirtualDigitSource
 
