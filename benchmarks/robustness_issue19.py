@@ -445,7 +445,7 @@ def _d_bundle(dest: Path) -> Path:
     """A real depth (D) bundle whose manifest records no mapping: force = mean(depth) / 51."""
     import onnx
     from onnx import TensorProto, helper
-    from tactile_force.edge.bundle.manifest import InputKind, InputSpec, Manifest, OutputSpec, Provenance
+    from tactile_force.edge.bundle.manifest import InputKind, InputSpec, Manifest, ModelOutputSpec, Provenance
     from tactile_force.edge.bundle.store import write_bundle
 
     nodes = [helper.make_node("Cast", ["depth"], ["d"], to=TensorProto.FLOAT),
@@ -462,7 +462,7 @@ def _d_bundle(dest: Path) -> Path:
     buf = io.BytesIO(model.SerializeToString())
     m = Manifest(variant="d", precision="fp32",
                  inputs=[InputSpec("depth", InputKind.DEPTH, [-1, 320, 240, 1], colour_order="GRAY")],
-                 output=OutputSpec("force", [-1, 1]), name="d_test", provenance=Provenance(note="test graph"))
+                 output=ModelOutputSpec("force", [-1, 1]), name="d_test", provenance=Provenance(note="test graph"))
     onnx.checker.check_model(model)
     return write_bundle(dest, buf.getvalue(), m).path
 

@@ -49,7 +49,7 @@ _LAZY = {
     "ForceInterval": "bundle.interval", "fit_interval": "fitting.interval",
     # labelled data and metrics
     "AuthorsDataset": "data.dataset", "AuthorsDatasetWriter": "data.dataset", "Sample": "data.dataset",
-    "ErrorReport": "data.metrics", "ErrorStats": "data.metrics", "error_report": "data.metrics",
+    "ErrorBreakdown": "data.metrics", "ErrorStats": "data.metrics", "error_report": "data.metrics",
     "error_stats": "data.metrics",
     "relative_error": "data.metrics",
     # depth stage (D / Dmod / RGBmod+D only)
@@ -81,7 +81,7 @@ __all__ = [
     "AcceleratorUnavailableError", "ArgumentTypeError", "AuthorsDataset", "AuthorsDatasetWriter", "Bundle",
     "BundleError",
     "CameraSource", "ContactGate", "ContactSpec", "CsvWriter", "DEPTH_VARIANTS", "DataStats", "DatasetError",
-    "DatasetOptions", "DatasetSummary", "DepthOptions", "DepthResult", "DepthStage", "ErrorReport", "ErrorStats",
+    "DatasetOptions", "DatasetSummary", "DepthOptions", "DepthResult", "DepthStage", "ErrorBreakdown", "ErrorStats",
     "FRAME_SHAPE", "Flags", "ForceCalibration", "ForceReading", "ForceRuntime", "FrameError", "FrameSource",
     "GateOptions", "GateResult", "IndenterSplit", "InputKind", "JsonlWriter", "LadderChoice", "MAX_VALID_FORCE_N",
     "MIN_VALID_FORCE_N", "Manifest", "MaxDeformationBaseline", "MissingExtraError", "NormalLUT", "OnnxForceModel",
@@ -100,7 +100,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time these load lazily
     from .bundle.force_calibration import ForceCalibration
     from .bundle.interval import ForceInterval
     from .data.dataset import AuthorsDataset, AuthorsDatasetWriter, Sample
-    from .data.metrics import ErrorReport, ErrorStats, error_report, error_stats, relative_error
+    from .data.metrics import ErrorBreakdown, ErrorStats, error_report, error_stats, relative_error
     from .depth import DepthOptions, DepthResult, DepthStage, MaxDeformationBaseline, NormalLUT
     from .fitting.interval import fit_interval
     from .gate.contact_gate import ContactGate, GateOptions, GateResult

@@ -46,7 +46,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal, TypeVar, Union
 
-from .errors import ArgumentTypeError
+from .errors import ArgumentTypeError, TactileForceError
 
 T = TypeVar("T")
 
@@ -54,7 +54,7 @@ T = TypeVar("T")
 METADATA_KEY = "typed_json"
 
 
-class TypedJsonError(ValueError):
+class TypedJsonError(TactileForceError, ValueError):
     """A value does not fit the typed record; ``str()`` names the field path."""
 
 

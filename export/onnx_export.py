@@ -30,7 +30,7 @@ from tactile_force.edge.bundle.manifest import (
     InputKind,
     InputSpec,
     Manifest,
-    OutputSpec,
+    ModelOutputSpec,
     Parity,
     Precision,
     Provenance,
@@ -212,8 +212,8 @@ def _input_specs(variant: str, input_scale: float = 1.0) -> list[InputSpec]:
     return specs
 
 
-def output_spec() -> OutputSpec:
-    return OutputSpec(name=OUTPUT_NAME)
+def output_spec() -> ModelOutputSpec:
+    return ModelOutputSpec(name=OUTPUT_NAME)
 
 
 def preprocessing_steps(spec: ModelSpec, folded: bool = False) -> list[str]:

@@ -163,7 +163,7 @@ class InputSpec:
 
 
 @dataclass
-class OutputSpec:
+class ModelOutputSpec:
     """The graph output: one force in newtons per frame."""
 
     name: str = "force_n"
@@ -354,7 +354,7 @@ class Manifest:
     variant: Variant
     precision: Precision
     inputs: list[InputSpec]
-    output: OutputSpec = field(default_factory=OutputSpec)
+    output: ModelOutputSpec = field(default_factory=ModelOutputSpec)
     name: str = ""
     format_version: int = FORMAT_VERSION
     sha256: str = ""

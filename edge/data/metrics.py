@@ -39,7 +39,7 @@ class ErrorStats:
 
 
 @dataclass(slots=True)
-class ErrorReport:
+class ErrorBreakdown:
     """Overall stats plus per-1-N-bin and per-group breakdowns."""
 
     overall: ErrorStats
@@ -102,14 +102,14 @@ def error_report(
     pred: Sequence[float] | np.ndarray,
     truth: Sequence[float] | np.ndarray,
     groups: dict[str, Iterable[str]] | None = None,
-) -> ErrorReport:
+) -> ErrorBreakdown:
     """Overall, per-1-N-bin and per-group error stats.
 
     groups: optional mapping group name (e.g. 'shape', 'stiffness', 'location') to one
     label per sample.
     """
     p, t = _as_1d(pred, "pred"), _as_1d(truth, "truth")
-    report = ErrorReport(overall=error_stats(p, t))
+    report = ErrorBreakdown(overall=error_stats(p, t))
     bins = np.floor(t).astype(int)
     for k in sorted(set(bins.tolist())):
         sel = bins == k
@@ -129,8 +129,8 @@ def cnn_readings(readings: list[ForceReading]) -> list[ForceReading]:
             and r.truth_n is not None and r.truth_n > 0]
 
 
-def readings_error(readings: list[ForceReading]) -> tuple[ErrorReport | None, int, int]:
-    """The error of a replay with truth, as ``run`` reports it: (ErrorReport over
+def readings_error(readings: list[ForceReading]) -> tuple[ErrorBreakdown | None, int, int]:
+    """The error of a replay with truth, as ``run`` reports it: (ErrorBreakdown over
     :func:`cnn_readings` or None when there is none, frames with truth, frames with truth
     >= 1 N that got no CNN reading). ``tactile-force bench --data`` reports the same figures."""
     with_truth = [r for r in readings if r.truth_n is not None and Flags.STALE not in r.flags]

@@ -7,7 +7,7 @@ import tarfile
 
 import numpy as np
 import pytest
-from tactile_force.edge.bundle.manifest import InputKind, InputSpec, Manifest, OutputSpec
+from tactile_force.edge.bundle.manifest import InputKind, InputSpec, Manifest, ModelOutputSpec
 from tactile_force.edge.bundle.store import write_bundle
 from tactile_force.edge.errors import AcceleratorUnavailableError, BundleError, FrameError
 from tactile_force.firmware_bridge import OakForceModel, OakOptions, build_nn_archive
@@ -25,7 +25,7 @@ def _bundle(tmp_path, variant="rgbmod", precision="fp32"):
     depth = InputSpec("depth", InputKind.DEPTH, [-1, 320, 240, 1], colour_order="GRAY")
     inputs = {"rgbmod": [rgb], "d": [depth], "rgbmod+d": [rgb, depth]}[variant]
     m = Manifest(variant=variant, precision=precision, inputs=inputs, name=f"test-{variant}",
-                 output=OutputSpec("force"))
+                 output=ModelOutputSpec("force"))
     # The OAK path reads only the manifest; the ONNX bytes are a placeholder, never run.
     return write_bundle(tmp_path / f"b-{variant.replace('+', '_')}", b"placeholder onnx bytes", m)
 

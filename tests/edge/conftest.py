@@ -11,7 +11,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from tactile_force.edge.bundle.manifest import ErrorReport, InputKind, InputSpec, Manifest, OutputSpec, Provenance
+from tactile_force.edge.bundle.manifest import ErrorReport, InputKind, InputSpec, Manifest, ModelOutputSpec, Provenance
 from tactile_force.edge.bundle.store import write_bundle
 
 
@@ -56,7 +56,7 @@ def mean_manifest(variant: str, name: str, error: ErrorReport | None = None) -> 
     inputs = [InputSpec("rgb", InputKind.RGB, [-1, 320, 240, 3])] if variant in ("rgbmod", "rgbmod+d") else []
     if variant != "rgbmod":
         inputs.append(InputSpec("depth", InputKind.DEPTH, [-1, 320, 240, 1], colour_order="GRAY"))
-    return Manifest(variant=variant, precision="fp32", inputs=inputs, output=OutputSpec("force", [-1, 1]),
+    return Manifest(variant=variant, precision="fp32", inputs=inputs, output=ModelOutputSpec("force", [-1, 1]),
                     name=name, error=error, provenance=Provenance(note="test mean model, not trained"))
 
 
