@@ -179,7 +179,7 @@ class PolynomialBaseline:
     needs_depth = True
 
     def __init__(self, pool: FramePool) -> None:
-        from tactile_force.edge import MaxDeformationBaseline
+        from tactile_force.edge.depth import MaxDeformationBaseline
 
         self.model = MaxDeformationBaseline.fit(list(pool.depth), pool.force)
 

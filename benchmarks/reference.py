@@ -248,7 +248,7 @@ VIRTUAL_DEPTH_LEVELS_PER_PX = 255.0 / 48.0
 def virtual_depth_stage(downscale: int = 1):
     """The runtime's depth stage as the reference depth models were trained with it
     (``downscale`` k: at the network resolution 320/k x 240/k)."""
-    from tactile_force.edge import DepthOptions, DepthStage
+    from tactile_force.edge.depth import DepthOptions, DepthStage
 
     rec = virtual_depth_record(downscale)
     return DepthStage(DepthOptions(mapping=VIRTUAL_DEPTH_MAPPING, mode=rec.mode,

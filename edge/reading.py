@@ -11,7 +11,7 @@ MAX_VALID_FORCE_N = 15.0
 
 
 class IntervalState(str, enum.Enum):
-    """What a reading's ``force_low_n`` / ``force_high_n`` mean (issue 21).
+    """What a reading's ``force_low_n`` / ``force_high_n`` mean.
 
     ``known``: a central interval holding the true force with the bundle's stated coverage
     (``ForceInterval.coverage``, default 0.90); ``open_above``: the lower bound is known,

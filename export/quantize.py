@@ -95,7 +95,7 @@ def head_input_nodes(model, final_layer: str) -> list[str]:
     """Names of the nodes that make the final linear layer's input: the concatenation of the
     pooled features and the pooling itself (walking back from ``final_layer`` through
     :data:`HEAD_INPUT_OPS` only). Quantizing those vectors put most of the int8 error of
-    full-resolution RGBmod into the force (issue 15: 0.193 N -> 0.043 N max when kept float)."""
+    full-resolution RGBmod into the force (0.193 N -> 0.043 N max difference when kept float)."""
     producers = {o: n for n in model.graph.node for o in n.output}
     node = next((n for n in model.graph.node if n.name == final_layer), None)
     if node is None:

@@ -13,7 +13,7 @@ Format history
 2
     Typed sections; ``depth`` and ``error`` promoted and renamed (``vs_ground_truth``
     -> ``error.vs_truth`` / ``error.fp32_vs_truth``); ``force_calibration`` and
-    ``data_stats`` added; later ``interval`` (optional, issue 21).
+    ``data_stats`` added; later ``interval`` (optional).
 3
     Each input records the network input it feeds and how a full-resolution frame is
     reduced to it (``inputs[].reduction``: method and factor; edge/gate/reduce.py): a compact

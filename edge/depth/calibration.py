@@ -18,7 +18,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from ..checks import expect
+from ..checks import check_fields, expect
 from .normals import MappingError, _load_npz
 
 LUT_FORMAT = "tactile_force.depth_lut"
@@ -181,6 +181,8 @@ class LUTOptions:
     background_margin: float = 1.4
     background_stride: int = 7
 
+    def __post_init__(self) -> None:
+        check_fields(self)
 
 @dataclass(slots=True)
 class AngleError:

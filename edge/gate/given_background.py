@@ -1,4 +1,4 @@
-"""Is a background given to the runtime really a no-contact image? (issue 19, Build 3)
+"""Is a background given to the runtime really a no-contact image?
 
 A background that holds a press makes the gate read that press as "no contact": a grasp at
 12 N would read 0 N ``no_contact``. A single frame cannot tell a press from a sensor's own

@@ -12,6 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..checks import check_fields
+
 
 @dataclass(frozen=True, slots=True)
 class DomeOptions:
@@ -26,6 +28,8 @@ class DomeOptions:
     half_rows: float = 160.0
     half_cols: float = 120.0
 
+    def __post_init__(self) -> None:
+        check_fields(self)
 
 def dome_height_mm(shape: tuple[int, int] = (320, 240), options: DomeOptions = DomeOptions()) -> np.ndarray:
     """Height of the undeformed gel (rows x cols float32, mm, >= 0)."""

@@ -24,6 +24,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..checks import check_fields
+
 
 @dataclass(frozen=True, slots=True)
 class GelOptions:
@@ -46,6 +48,8 @@ class GelOptions:
     onset_n: float = 1.2
     penalty_ref_radius_mm: float = 3.0
 
+    def __post_init__(self) -> None:
+        check_fields(self)
 
 def _check_stiffness(options: GelOptions, stiffness: str) -> None:
     if stiffness not in options.object_modulus_mpa:

@@ -26,6 +26,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from ..checks import check_fields
+
 
 @dataclass(frozen=True, slots=True)
 class Led:
@@ -52,6 +54,8 @@ class ShadingOptions:
     press_flatten_mm: float = 0.3
     slope_scale: float = 0.35
 
+    def __post_init__(self) -> None:
+        check_fields(self)
 
 class AnalyticShader:
     """Colour change of a deformation patch with the three-LED model."""

@@ -13,32 +13,25 @@ import pytest
 from tactile_force import edge
 from tactile_force.edge import (
     AuthorsDataset,
-    AuthorsDatasetWriter,
     CameraSource,
     ContactGate,
-    ContactSpec,
     CsvWriter,
-    DatasetOptions,
-    DepthOptions,
-    DepthStage,
     ForceRuntime,
     GateOptions,
-    IndenterSplit,
     JsonlWriter,
-    MaxDeformationBaseline,
-    NormalLUT,
     OnnxForceModel,
     ReplayFolderSource,
     RuntimeOptions,
     Sensor,
     StdoutWriter,
     VideoFileSource,
-    VirtualDigit,
-    VirtualDigitOptions,
     VirtualDigitSource,
     default_bundle_path,
 )
+from tactile_force.edge.data.dataset import AuthorsDatasetWriter
+from tactile_force.edge.depth import DepthOptions, DepthStage, MaxDeformationBaseline, NormalLUT
 from tactile_force.edge.errors import ArgumentTypeError, OptionsError, TactileForceError
+from tactile_force.edge.synthetic import ContactSpec, DatasetOptions, IndenterSplit, VirtualDigit, VirtualDigitOptions
 
 from tests.conftest import ListSource
 
@@ -164,11 +157,17 @@ _REQUIRED = {"DepthOptions": {"mapping": "m.npz"}, "ContactSpec": {"indenter": "
 
 
 def _options_classes() -> list[type]:
+    """The options dataclasses of the public API: tactile_force.edge and its depth and synthetic packages."""
+    import importlib
+
     out = []
-    for name in edge.__all__:
-        obj = getattr(edge, name)
-        if isinstance(obj, type) and dataclasses.is_dataclass(obj) and name.endswith(("Options", "Spec")):
-            out.append(obj)
+    for mod in (edge, importlib.import_module("tactile_force.edge.depth"),
+                importlib.import_module("tactile_force.edge.synthetic")):
+        for name in mod.__all__:
+            obj = getattr(mod, name)
+            if (isinstance(obj, type) and dataclasses.is_dataclass(obj) and name.endswith(("Options", "Spec"))
+                    and obj not in out):
+                out.append(obj)
     return out
 
 

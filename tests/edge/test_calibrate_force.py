@@ -9,15 +9,10 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from tactile_force.edge import (
-    AuthorsDataset,
-    AuthorsDatasetWriter,
-    BundleError,
-    default_bundle_path,
-    load_bundle,
-)
+from tactile_force.edge import AuthorsDataset, BundleError, default_bundle_path, load_bundle
 from tactile_force.edge.bundle.force_calibration import ForceCalibration
 from tactile_force.edge.cli import main as cli_main
+from tactile_force.edge.data.dataset import AuthorsDatasetWriter
 from tactile_force.edge.fitting.force_calibration import (
     CalibrationLimits,
     CalibrationRefused,

@@ -10,17 +10,10 @@ import json
 
 import numpy as np
 import pytest
-from tactile_force.edge import (
-    AuthorsDataset,
-    DatasetOptions,
-    OnnxForceModel,
-    default_bundle_path,
-    error_stats,
-    generate_dataset,
-    load_bundle,
-    paper_split,
-    sha256_file,
-)
+from tactile_force.edge import AuthorsDataset, OnnxForceModel, default_bundle_path, load_bundle
+from tactile_force.edge.bundle.store import sha256_file
+from tactile_force.edge.data.metrics import error_stats
+from tactile_force.edge.synthetic import DatasetOptions, generate_dataset, paper_split
 
 
 @pytest.fixture(scope="module")
