@@ -1321,22 +1321,22 @@ COVERAGE = [
      "tests/robustness/test_record_faults.py::test_resume_repairs_a_truncated_last_line_instead_of_appending_to_it, "
      "::test_kill_9_at_each_write_phase_loses_no_complete_sample, ::test_repair_without_hardware"),
     ("Bundle `--force` replace not atomic; `.partial` folders left (lead)",
-     "tests/edge/test_bundle_writes.py::test_kill_9_at_every_write_phase_leaves_a_complete_bundle, "
+     "tests/edge/bundle/test_bundle_writes.py::test_kill_9_at_every_write_phase_leaves_a_complete_bundle, "
      "::test_a_live_writer_partial_is_not_stale"),
     ("Graph does not fit the frame contract; `bundle verify` tracebacks / OK for `variant: d`; "
      "`bundle show` KeyError on partial sections; `onnx_file` outside the bundle (lead)",
-     "tests/edge/test_bundle_writes.py::test_graphs_that_break_the_frame_contract_are_refused_at_load, "
-     "tests/edge/test_manifest.py::test_bundle_verify_refuses_a_variant_the_graph_does_not_have, "
+     "tests/edge/bundle/test_bundle_writes.py::test_graphs_that_break_the_frame_contract_are_refused_at_load, "
+     "tests/edge/bundle/test_manifest.py::test_bundle_verify_refuses_a_variant_the_graph_does_not_have, "
      "::test_onnx_file_outside_the_bundle_is_never_followed, ::test_damaged_manifest_files_name_the_file; "
      "tests/robustness/test_manifests.py (property test + the issue's manifests through load, verify and show)"),
     ("Disk full during `record`: raw OSError, summary lost",
      "tests/robustness/test_record_faults.py::test_disk_full_stops_cleanly_with_the_summary"),
     ("Scene values give TypeError / ZeroDivisionError / ValueError; `scene show` too lenient (B1)",
-     "tests/edge/test_scene_validation.py::test_bad_scene_values_are_named_with_key_and_file, "
+     "tests/edge/scene/test_scene_validation.py::test_bad_scene_values_are_named_with_key_and_file, "
      "::test_bad_scenes_exit_2_without_traceback, ::test_csv_path_that_is_a_folder_fails_before_the_model_is_loaded, "
      "::test_scene_show_exits_2_when_a_listed_file_is_missing; tests/robustness/test_scenes.py (property test)"),
     ("Runs producing nothing exit 0 (VGA video, all-corrupt replay) (B1)",
-     "tests/edge/test_scene_validation.py::test_vga_video_exits_2_with_a_message, "
+     "tests/edge/scene/test_scene_validation.py::test_vga_video_exits_2_with_a_message, "
      "::test_all_corrupt_replay_folder_exits_2_with_a_message; "
      "tests/robustness/test_video_source.py::test_vga_video_is_refused_naming_its_size"),
     ("Replay folder deleted mid-run: no error, 938 frames 'corrupt'",
@@ -1354,7 +1354,7 @@ COVERAGE = [
      "::test_max_frames_zero_is_not_unlimited, ::test_calibration_frames_with_the_wrong_channels_are_refused"),
     ("`demo --grasps 0` / `--threads 0` (B1); `synth --n 0`, `synth --out FILE`; exposure reads a "
      "checkerboard as all-white",
-     "tests/edge/test_scene_validation.py::test_bad_flags_exit_2_with_a_clear_line (B1); "
+     "tests/edge/scene/test_scene_validation.py::test_bad_flags_exit_2_with_a_clear_line (B1); "
      "tests/robustness/test_cli_args.py::test_bad_arguments_exit_2_naming_the_flag; "
      "tests/robustness/test_frames.py::test_checkerboard_is_not_all_white, "
      "::test_exposure_verdict_matches_the_whole_frame"),
@@ -1367,7 +1367,7 @@ COVERAGE_19 = [
      "tests/robustness/test_labels_grammar.py::test_decimal_comma_and_units_are_errors_naming_the_file, "
      "::test_calibrate_force_refuses_decimal_comma_labels"),
     ("`calibrate-depth --ball-radius-mm 0 / -3`, `--px-per-mm 0` exit 0; a 10x wrong scale reports a lower error",
-     "tests/depth/test_calibrate_depth_args.py::test_impossible_radius_or_scale_exits_2_and_writes_nothing, "
+     "tests/edge/depth/test_calibrate_depth_args.py::test_impossible_radius_or_scale_exits_2_and_writes_nothing, "
      "::test_a_ten_times_wrong_scale_is_refused_naming_the_flags"),
     ("calibrate-force / export / quantize `--out` onto or around their inputs with `--force` destroyed them",
      "tests/robustness/test_inputs_never_destroyed.py::"
@@ -1392,7 +1392,7 @@ COVERAGE_19 = [
      "and no mapping flag; `--max-frames 0`; scene `topic = \"/a//b\"` passes `scene show`",
      "tests/robustness/test_smaller_items.py (every test), "
      "tests/robustness/test_labels_grammar.py::test_labels_ten_times_too_large_give_a_warning_naming_the_cause, "
-     "tests/edge/test_scene_validation.py::test_bad_flags_exit_2_with_a_clear_line"),
+     "tests/edge/scene/test_scene_validation.py::test_bad_flags_exit_2_with_a_clear_line"),
 ]
 
 BASELINE_COMMIT = "9ed225d"

@@ -98,7 +98,7 @@ class DepthOptions:
     slopes, ``g[i, j] = k (s[i, j] + s[i, j+1]) / 2`` (the slope half way between them; 0
     beyond the frame), not the slope at ``[i, j]`` alone: at a 4-pixel pitch using the
     pixel's own slope shifts the surface by half a grid pixel (2 px) and its error on a
-    spherical cap is 3x larger (tests/depth/test_depth_network_resolution.py). Full
+    spherical cap is 3x larger (tests/edge/depth/test_depth_network_resolution.py). Full
     resolution (k = 1) keeps the pixel's own slope, as the authors' pipeline and every
     depth image made before.
     """

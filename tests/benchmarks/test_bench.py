@@ -275,7 +275,7 @@ def test_bench_reports_the_precision_the_graph_holds_not_the_manifests(tmp_path)
     from tactile_force.edge.bundle.graph_facts import bundle_precision
     from tactile_force.edge.bundle.store import write_bundle
 
-    from tests.edge.conftest import mean_manifest, mean_model_bytes
+    from tests.conftest import mean_manifest, mean_model_bytes
 
     m = mean_manifest("rgbmod", "fp32-says-int8")
     m.precision = type(m.precision)("int8-static")

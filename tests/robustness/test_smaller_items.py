@@ -11,7 +11,7 @@ from tactile_force.edge.bundle.store import write_bundle
 from tactile_force.edge.cli import main as cli_main
 
 from benchmarks.robustness import make_dataset
-from tests.edge.conftest import mean_manifest, mean_model_bytes
+from tests.conftest import mean_manifest, mean_model_bytes
 
 
 @pytest.fixture

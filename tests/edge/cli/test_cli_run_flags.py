@@ -22,7 +22,7 @@ from tactile_force.edge.scene import load_scene, parse_scene, scene_from_flags
 
 from tests.conftest import shared_data
 
-REPO = Path(__file__).resolve().parents[2]
+from tests.conftest import REPO  # noqa: E402
 
 
 @pytest.fixture

@@ -11,7 +11,6 @@ import threading
 import cv2
 import numpy as np
 import pytest
-from edge_helpers import FakeClock
 from tactile_force.edge import Flags, SourceError, TimedFrame
 from tactile_force.edge.frames import FrameSource
 from tactile_force.edge.gate.contact_gate import ContactGate
@@ -21,7 +20,7 @@ from tactile_force.edge.sources import CameraSource, ReplayFolderSource, load_ba
 from tactile_force.edge.synthetic import VirtualDigitSource
 
 from tests.bridge.fakes import FakeCamera, landscape
-from tests.conftest import shared_data
+from tests.conftest import FakeClock, shared_data
 
 WAIT_S = 20.0  # generous: only a hung thread ever gets near it
 

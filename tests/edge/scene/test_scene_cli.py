@@ -20,7 +20,7 @@ from tactile_force.edge.sources import ReplayFolderSource
 
 from tests.conftest import shared_data
 
-REPO = Path(__file__).resolve().parents[2]
+from tests.conftest import REPO  # noqa: E402
 
 
 def _scene(tmp_path: Path, bundle: Path, aurova: Path, extra: str = "", name: str = "scene.toml") -> Path:

@@ -9,7 +9,6 @@ import shutil
 import cv2
 import numpy as np
 import pytest
-from edge_helpers import FakeClock, expected_force
 from tactile_force.edge import BundleError, Flags, FrameError, SourceError, TimedFrame
 from tactile_force.edge.frames import FrameSource
 from tactile_force.edge.gate.contact_gate import ContactGate
@@ -18,7 +17,7 @@ from tactile_force.edge.outputs import CsvWriter, JsonlWriter
 from tactile_force.edge.runtime.loop import ForceRuntime, RuntimeOptions, Sensor, plan_stages
 from tactile_force.edge.sources import ReplayFolderSource, load_background
 
-from tests.conftest import shared_data
+from tests.conftest import FakeClock, expected_force, shared_data
 
 
 def _bg():

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-LOOPBACK_XML = Path(__file__).resolve().parents[1] / "cyclonedds_loopback.xml"
+from tests.conftest import CYCLONEDDS_LOOPBACK as LOOPBACK_XML  # noqa: E402
 os.environ["CYCLONEDDS_URI"] = LOOPBACK_XML.as_uri()  # before any participant exists in this process
 
 pytest.importorskip("cyclonedds", reason="ROS 2 output needs cyclonedds (the 'ros2' extra)")

@@ -20,7 +20,7 @@ from tactile_force.edge.scene import default_bundle_path
 
 from tests.conftest import ListSource
 
-REPO = Path(__file__).resolve().parents[2]
+from tests.conftest import REPO  # noqa: E402
 REFERENCE = REPO / "benchmarks" / "reference_graphs" / "default_c1733e6.onnx"
 
 
