@@ -6,7 +6,6 @@
     python -m benchmarks all --quick                  # smoke run (never into the docs)
     python -m benchmarks robustness --out docs        # bad inputs and faults, counted -> docs/robustness.md
     python -m benchmarks trust --out docs/benchmarks  # frames that cannot be judged, counted -> trust.md
-    python -m benchmarks one-downscale --out docs/benchmarks  # issue 18 goals + 10-run check -> one_downscale.md
     python -m benchmarks intervals --out docs/benchmarks  # every reading's error bar, measured -> intervals.md
 
 Results go to ``--out DIR`` (default out/benchmarks, git-ignored); docs/benchmarks only
@@ -91,7 +90,7 @@ def _main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     ap = argparse.ArgumentParser(prog="python -m benchmarks", description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__)
-    ap.add_argument("what", nargs="?", choices=(*TASKS, "robustness", "trust", "intervals", "one-downscale"),
+    ap.add_argument("what", nargs="?", choices=(*TASKS, "robustness", "trust", "intervals"),
                     help="which benchmark to run (default: none with --check); 'robustness', 'trust' and "
                          "'intervals' are not part of 'all'")
     ap.add_argument("--write-default-stats", action="store_true",
@@ -126,12 +125,6 @@ def _main(argv: list[str] | None = None) -> int:
         from .trust import run as run_trust
 
         return run_trust(args, argv)
-    if args.what == "one-downscale":  # issue 18: goals vs the c1733e6 reference graph + the 10-run check
-        from .one_downscale import page as one_downscale_page
-
-        _write("one_downscale.md", one_downscale_page(argv, frames=300 if args.quick else 2000,
-                                                      check=2 if args.quick else 10, quick=args.quick), args.out)
-        return 0
     if args.what == "intervals":
         from .interval_page import intervals_page
 

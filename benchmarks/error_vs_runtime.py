@@ -10,10 +10,9 @@ from pathlib import Path
 import numpy as np
 
 from .bundles import trained_models
-from .evaluate import predict_all, real_frames, synthetic_test
 from .latency import LatencyCase, measure
 from .machine import command_line, describe_machine, header
-from .reference import CONFIGS
+from .reference import CONFIGS, predict_all, real_frames, synthetic_test
 from .stats import markdown_table
 
 
@@ -145,8 +144,8 @@ CALIBRATION_POINTER = ("`tactile-force calibrate-force` fitted on the 11 real AU
                        "(`python -m benchmarks.calibration_study`). Distilled students (`tactile-force compress`) "
                        "against their teacher and against the same students trained with labels, on the held-out "
                        "synthetic indenters: [distillation.md](distillation.md) and "
-                       "[distillation_small_student.md](distillation_small_student.md) "
-                       "(`python -m benchmarks.distill_study`).")
+                       "[distillation_small_student.md](distillation_small_student.md) (measured by code since "
+                       "retired; each page names its commit).")
 
 NOTE = """Models: the reference recipe (`python -m benchmarks.reference`), trained from scratch on
 SYNTHETIC virtual DIGIT frames only (S1 split: 14 train / 2 val / 2 held-out test indenters).

@@ -318,7 +318,6 @@ def _ratios(by: dict, quick: bool) -> list[list[object]]:
 def latency_page(args, argv: list[str], measure_fn: Callable[[LatencyCase], LatencyResult]) -> str:
     from .bundles import best_rgbmod_bundle
     from .frames import frame_pool
-    from .preprocess_graph import measure_preprocessing
 
     quick = bool(args.quick)
     pool = frame_pool()
@@ -387,21 +386,19 @@ def latency_page(args, argv: list[str], measure_fn: Callable[[LatencyCase], Late
     gh, gr = gate_table(100 if quick else 500)
     sections.append(Section("Contact gate cost and agreement (ContactGate.update alone)",
                             markdown_table(gh, gr) if gh else "(real data not found: ../shared/data)"))
-    pre = measure_preprocessing(200 if quick else 1000)
     (prof, run_us), pstate = _watched(lambda: node_profile(default_path, pool, 100 if quick else 500))
     sections.append(Section(
         "Graph-level work: where the compact int8 RGBmod spends its time",
         "onnxruntime's profiler (`SessionOptions.enable_profiling`), default bundle, one thread, node by node "
         f"(median per run; `model_run` median {run_us:.0f} us, the node times sum to less):\n\n"
         + markdown_table(["op (as onnxruntime runs it)", "us per run", "share of node time", "nodes"], prof, 1)
-        + "\n\nThe default graph starts at the network resolution (issue 18): the frame is reduced to 80 x 60 "
+        + "\n\nThe default graph starts at the network resolution: the frame is reduced to 80 x 60 "
         "once, outside the graph, and the int8 convolutions take about three quarters of the node time (before, "
         "the in-graph input head - Transpose, Cast, 4x4 AveragePool, QuantizeLinear on the full frame - took about "
         "a third; docs/benchmarks/one_downscale.md). Tried and kept out (measured not faster on this "
         "machine, same outputs): the head as one QLinearConv (4x4 stride 4, per channel; dense and depthwise), "
         "a Reshape + ReduceMean head, session options (graph optimisation level extended vs all, memory arena and "
-        "pattern off, QDQ int8 allowance). IO binding is kept (the runtime's predict runs the bound buffers).\n\n"
-        + markdown_table(["graph (in-graph preprocessing alternatives)", "p50 us", "p99 us", "max abs diff"], pre, 2),
+        "pattern off, QDQ int8 allowance). IO binding is kept (the runtime's predict runs the bound buffers).",
         pstate))
     paper = markdown_table(["the paper's figure", "ms"], [[k, v] for k, v in PAPER_FIGURES.items()], 2)
     sections.append(Section("The paper's figures (their hardware, not measured here)", paper))

@@ -17,9 +17,9 @@ from pathlib import Path
 import numpy as np
 
 from .bundles import CACHE, DEFAULT_CONFIG, TRAINED_MODELS, ModelConfig, latency_bundle, parse_config, trained_models
-from .evaluate import predict_all, synthetic_test
 from .latency import LatencyCase, measure
 from .machine import command_line
+from .reference import predict_all, synthetic_test
 from .stats import markdown_table
 
 STUDY = CACHE / "quant_study"

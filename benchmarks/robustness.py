@@ -52,8 +52,8 @@ MAX_FORCE_N = 200.0
 
 def use_package_root(root: str | os.PathLike) -> None:
     """Import ``tactile_force`` from ``root`` (a folder holding tactile_force/edge, /export,
-    /firmware_bridge) instead of the installed package: used to run this catalogue against an
-    older commit (benchmarks/robustness_baseline.py). Call before tactile_force is imported."""
+    /firmware_bridge) instead of the installed package: used to run a test against an older
+    commit's package (tests/robustness/tf_cli.py). Call before tactile_force is imported."""
     sys.meta_path[:] = [f for f in sys.meta_path if "editable" not in repr(f).lower()]
     sys.path[:] = [p for p in sys.path if "__editable__" not in p]
     sys.path.insert(0, str(root))
@@ -1328,12 +1328,7 @@ COVERAGE_19 = [
      "tests/edge/test_scene_validation.py::test_bad_flags_exit_2_with_a_clear_line"),
 ]
 
-BASELINE_COMMIT = "9ed225d"
-#: Commits the catalogue is also run against: (commit, what it was before).
-BASELINES = [(BASELINE_COMMIT, "before issue 11"), ("c1733e6", "before issue 19")]
-
-
-def page(tallies: list[Tally], command: str, examples: int, baseline: str | dict[str, str] = "") -> str:
+def page(tallies: list[Tally], command: str, examples: int) -> str:
     from .machine import describe_machine, header
 
     disk = next((t.note for t in tallies if t.note), "")
@@ -1343,18 +1338,6 @@ def page(tallies: list[Tally], command: str, examples: int, baseline: str | dict
              f"Disk full was made with: {disk}.", ""]
     if bad:
         lines += ["## Cases that went wrong", ""] + [f"* {b}" for b in bad] + [""]
-    baselines = {BASELINE_COMMIT: baseline} if isinstance(baseline, str) else baseline
-    for commit, what in BASELINES:
-        if not baselines.get(commit):
-            continue
-        lines += [f"## The same catalogue at commit {commit} ({what})", "",
-                  f"Command: `python -m benchmarks.robustness_baseline {commit} --examples {examples}` "
-                  "(that commit's package, this checkout's cases and oracles; run by the command above).", "",
-                  baselines[commit], "",
-                  "At that commit some categories fail for reasons beyond the one tested (e.g. at 9ed225d "
-                  "`record --repair` did not exist, so every truncation case is also a usage error there; a "
-                  "case of a later issue may also fail on a flag that did not exist yet); a case counts once, "
-                  "under the worst outcome.", ""]
     lines += ["## Issue 11's findings and the tests that pin them", "",
               "Each test fails on commit 9ed225d's behaviour and passes now; (lead) and (B1) name the "
               "helpers whose code and tests cover that part.", "",
@@ -1388,19 +1371,8 @@ def run(args, argv: list[str]) -> int:
     print(table(tallies))
     for b in failures(tallies):
         print(f"  ! {b}")
-    baseline: dict[str, str] = {}
-    if not args.quick:
-        from .robustness_baseline import baseline_table
-
-        for commit, _what in BASELINES:
-            print(f"the same catalogue at {commit} ...", flush=True)
-            try:
-                baseline[commit] = baseline_table(commit, examples)
-            except (subprocess.CalledProcessError, subprocess.TimeoutExpired, RuntimeError, OSError) as exc:
-                baseline[commit] = f"(not run: {str(exc)[:300]})"
-            print(baseline[commit])
     out.mkdir(parents=True, exist_ok=True)
     dest = out / "robustness.md"
-    dest.write_text(page(tallies, command_line(argv), examples, baseline))
+    dest.write_text(page(tallies, command_line(argv), examples))
     print(f"wrote {dest}")
     return 1 if failures(tallies) else 0
