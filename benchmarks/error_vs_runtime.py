@@ -111,7 +111,7 @@ def run(args, argv) -> None:
 
 CALIBRATION_POINTER = ("`tactile-force calibrate-force` fitted on the 11 real AUROVA frames, leave-one-out and on the "
                        "11 held-out frames of the same grasp: [calibration.md](calibration.md) "
-                       "(`python -m benchmarks.calibration_study`). Distilled students (`tactile-force compress`) "
+                       "(`python -m benchmarks.calibration`). Distilled students (`tactile-force compress`) "
                        "against their teacher and against the same students trained with labels, on the held-out "
                        "synthetic indenters: [distillation.md](distillation.md) and "
                        "[distillation_small_student.md](distillation_small_student.md) (measured by code since "

@@ -50,7 +50,9 @@ def write_readme(out: Path) -> Path:
              "and its load. `python -m benchmarks --help` lists the commands; results go to out/benchmarks "
              "(git-ignored) unless `--out` names this folder, and `--quick` runs never come here. Trained models "
              "come from `python -m benchmarks.reference` (synthetic frames, CPU); configs it has not trained yet "
-             "are listed as 'not trained'.", ""]
+             "are listed as 'not trained'. The under-1 ms verdict on a host is `tactile-force bench` "
+             "([bench/report.md](bench/report.md)); the old check.md (measured at commit 940127e on a retired "
+             "design) went with its code at commit 3e8ae14.", ""]
     for name, what, command in PAGES:
         mark = "" if (out / name).exists() else " (not generated yet)"
         how = f" (`{command}`)" if command else " (its code was retired: the page names the commit to check out)"
