@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from .harness.frames import contact_frames
-from .harness.machine import describe_machine
+from .harness.machine import describe_machine, header
 from .harness.sources import ListSource, MemorySource
 
 
@@ -178,8 +178,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.write:
         cmd = "python -m benchmarks.depth_bundles" + (f" --frames {args.frames}" if args.frames != 2000 else "") \
             + f" --write {args.write}"
-        args.write.write_text(f"# Shipped compact depth bundles\n\nCommand: `{cmd}`\n\nMachine: {machine.line()}; "
-                              f"{machine.background_load}\n\n{__doc__.split(chr(10) + chr(10), 1)[1]}\n{text}\n")
+        notes = (__doc__ or "").split("\n\n", 1)[1].rstrip()
+        args.write.write_text(header("Shipped compact depth bundles", cmd, machine, notes) + text + "\n")
     return 0
 
 

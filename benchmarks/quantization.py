@@ -20,7 +20,7 @@ from .bundles import DEFAULT_CONFIG, latency_bundle, trained_models, trained_mod
 from .harness.data import predict_all
 from .harness.latency import LatencyCase, ModelConfig, measure, parse_config
 from .harness.machine import command_line
-from .harness.paths import cache_dir
+from .harness.paths import cache_dir, source_commit
 from .harness.stats import markdown_table
 from .reference import synthetic_test
 
@@ -102,7 +102,9 @@ def run(args, argv) -> None:
     if args.quick:
         test.rgb, test.force = test.rgb[:40], test.force[:40]
     scale_rows, scale_note = input_scale_study(test, args.quick)
-    text = markdown(report, "Quantization study").rstrip() + "\n\n" + "\n".join([
+    # the study's report.md with the commit that measured, after its command line
+    head, sep, rest = markdown(report, "Quantization study").partition(f"Command: `{report.command}`\n")
+    text = (head + sep + f"\nCommit: {source_commit()}\n" + rest).rstrip() + "\n\n" + "\n".join([
         f"Model: {weights}. The study's bundles: `{out}`. The same study runs on your model, data and host "
         "with `tactile-force study` ([docs/bench.md](../bench.md)).", "",
         "## Evaluating at a smaller input scale than trained", "", scale_note, "",
