@@ -40,7 +40,7 @@ def predict_all(model, data: Labelled) -> np.ndarray:
     out = np.empty(len(data.force), np.float64)
     for i in range(0, len(out), 2):
         rgb = data.rgb[i:i + 2] if model.rgb_name else None
-        d = data.depth[i:i + 2] if model.needs_depth else None
+        d = data.depth[i:i + 2] if model.needs_depth and data.depth is not None else None
         out[i:i + 2] = model.predict(rgb, d)
     return out
 

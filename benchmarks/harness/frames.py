@@ -119,7 +119,9 @@ def contact_renders(seed: int):
 def _render(n: int, seed: int) -> FramePool:
     bgs, renders = contact_renders(seed)
     stage = virtual_depth_stage()
-    rgb, depth, force = [], [], []
+    rgb: list[np.ndarray] = []
+    depth: list[np.ndarray] = []
+    force: list[float] = []
     for frame, f, g in renders:
         if len(rgb) >= n:
             break

@@ -48,12 +48,12 @@ def percentiles(samples_ms: Sequence[float] | np.ndarray) -> Percentiles:
     return Percentiles(float(p50), float(p90), float(p99), float(x.mean()), int(x.size))
 
 
-def fmt(v: float | int | str | None, digits: int = 3) -> str:
-    """Number for a table cell: '-' for None/NaN, fixed decimals for floats."""
+def fmt(v: object, digits: int = 3) -> str:
+    """Number for a table cell: '-' for None/NaN, fixed decimals for floats, other values as text."""
     if v is None:
         return "-"
-    if isinstance(v, str):
-        return v
+    if not isinstance(v, (int, float, np.number)):
+        return str(v)
     if isinstance(v, (int, np.integer)) and not isinstance(v, bool):
         return str(int(v))
     if not math.isfinite(float(v)):
