@@ -29,7 +29,8 @@ make the same depth. Their graphs start at the network resolution.
 
 installs the shipped compact D and RGBmod+D bundles (edge/models/d, edge/models/rgbmod_d).
 
-Outputs (benchmarks/cache/, not committed): the synthetic dataset, depth images,
+Outputs (the cache dir, benchmarks/cache/ in a clone or $TACTILE_FORCE_CACHE; not committed):
+the synthetic dataset, depth images,
 checkpoints, fp32 / int8 bundles and a JSON record per config with the test error.
 """
 
