@@ -3,9 +3,9 @@
 What a robot host runs, with the core install only (numpy, onnxruntime, OpenCV; never torch,
 onnx or matplotlib): each bundle runs through ``ForceRuntime`` (one sensor, its contact gate,
 the depth stage for depth variants, the model) over virtual DIGIT frames in contact read from
-memory (:func:`benchmarks.latency.measure`), while the machine is watched
-(:class:`benchmarks.machine.CpuWindow`); the under-budget verdict per bundle is
-:func:`benchmarks.check.judge`'s (PASS / OVER_BUDGET / MACHINE_BUSY). With labelled data the
+memory (:func:`benchmarks.harness.latency.measure`), while the machine is watched
+(:class:`benchmarks.harness.machine.CpuWindow`); the under-budget verdict per bundle is
+:func:`benchmarks.harness.budget.judge`'s (PASS / OVER_BUDGET / MACHINE_BUSY). With labelled data the
 error comes from a replay of that folder through the same runtime ``tactile-force run``
 builds, with the same metric code (:func:`tactile_force.edge.data.metrics.readings_error`).
 
@@ -24,7 +24,9 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
+from .harness.budget import Attempt
+from .harness.frames import contact_frames
+from .harness.machine import Machine, MachineState
 
 SCHEMA = "tactile-force-bench/1"
 REPORT_JSON, REPORT_MD, PLOT_PNG = "report.json", "report.md", "pareto.png"
@@ -75,28 +77,6 @@ class BenchError:
 
 
 @dataclass
-class MachineState:
-    """What the machine did during one attempt: 1-min load average and mean CPU clock (MHz)
-    before / after, the share of all cores' time other processes used, seconds, busy."""
-
-    load_before: float | None
-    load_after: float | None
-    mhz_before: float | None
-    mhz_after: float | None
-    others_share: float | None
-    seconds: float
-    busy: bool
-
-
-@dataclass
-class Attempt:
-    """One measurement of a bundle: its total p99 (ms) and the machine meanwhile."""
-
-    total_p99_ms: float | None
-    machine: MachineState
-
-
-@dataclass
 class BundleResult:
     """One bundle's row: where it is, what it is, its latency through ``ForceRuntime``
     (``total_ms``: frame arrival -> reading, what a reading's total_ms shows; ``stages_ms``:
@@ -119,20 +99,6 @@ class BundleResult:
     verdict: str
     attempts: list[Attempt] = field(default_factory=list)
     note: str = ""
-
-
-@dataclass
-class Machine:
-    """The host: CPU model, logical cores, RAM (GiB), OS, Python and runtime versions, and
-    its background load when the bench started."""
-
-    cpu: str
-    cores: int
-    ram_gib: float | None
-    os: str
-    python: str
-    versions: str
-    background_load: str
 
 
 @dataclass
@@ -192,52 +158,16 @@ def overall_verdict(verdicts: Sequence[str]) -> str:
 
 # ----------------------------------------------------------------------------- what is measured
 def shipped_bundles() -> list[Path]:
-    """Every bundle shipped in the package (edge/models/*/ with a model.json), the default first
-    (:func:`tactile_force.edge.scene.shipped_bundles`; read here where that is missing)."""
-    from tactile_force.edge import scene
+    """Every bundle shipped in the package, the default first: the folders of
+    :func:`tactile_force.edge.scene.shipped_bundles`, as a list."""
+    from tactile_force.edge.scene import shipped_bundles as shipped
 
-    listed = getattr(scene, "shipped_bundles", None)
-    if listed is not None:
-        return list(listed().values())
-    default = scene.default_bundle_path()
-    root = default.parent
-    others = sorted(p for p in root.iterdir() if p.is_dir() and p != default and (p / "model.json").is_file()) \
-        if root.is_dir() else []
-    return ([default] if (default / "model.json").is_file() else []) + others
-
-
-def contact_frames(n: int = 64, seed: int = 0):
-    """``n`` virtual DIGIT frames in contact and 5 no-contact backgrounds, rendered in memory
-    (no torch, no cache), as a :class:`benchmarks.frames.FramePool` (depth left empty: the
-    runtime's own depth stage makes it).
-
-    Parameters
-    ----------
-    n : int
-        Frames in contact (the contact gate opens on each).
-    seed : int
-        Seed of the virtual DIGIT and of the contacts.
-    """
-    from .frames import FramePool, contact_renders
-
-    rgb: list[np.ndarray] = []
-    force: list[float] = []
-    # renders the gate cannot judge are dropped here, not warned about
-    with _quiet("tactile_force.edge.gate.contact_gate"):
-        bgs, renders = contact_renders(seed)
-        for frame, f, g in renders:
-            if len(rgb) >= n:
-                break
-            if g.contact and not g.mismatch and not g.invalid:
-                rgb.append(frame)
-                force.append(f)
-    arr = np.stack(rgb)
-    return FramePool(arr, np.zeros((*arr.shape[:3], 1), np.uint8), np.asarray(force, np.float32), bgs, [])
+    return list(shipped().values())
 
 
 def _depth_factory(manifest) -> Callable[[], object] | None:
     """The bundle's own depth stage when its manifest records one; None: the virtual DIGIT's
-    calibration (:func:`benchmarks.frames.depth_stage`), which the frames come from."""
+    calibration (:func:`benchmarks.harness.frames.virtual_depth_stage`), which the frames come from."""
     if not manifest.needs_depth or manifest.depth is None:
         return None
     from tactile_force.edge.runtime.loop import build_depth_stage
@@ -298,11 +228,6 @@ def replay_error(bundle: Path, data: Path, background: Path | None, threads: int
                       str(data), str(background) if background else None, n_truth, missed)
 
 
-def _machine_state(s) -> MachineState:
-    return MachineState(_f(s.load_before), _f(s.load_after), _f(s.mhz_before), _f(s.mhz_after),
-                        _f(s.others_share), float(s.seconds), bool(s.busy))
-
-
 def bench_bundle(path: Path, pool, frames: int = 1000, threads: int = 1, budget_ms: float = 1.0,
                  repeats: int = 3, pause_s: float = 30.0, warmup: int = 30, window=None,
                  sleep: Callable[[float], None] | None = None) -> BundleResult:
@@ -312,7 +237,7 @@ def bench_bundle(path: Path, pool, frames: int = 1000, threads: int = 1, budget_
     ----------
     path : Path
         The bundle folder.
-    pool : benchmarks.frames.FramePool
+    pool : benchmarks.harness.frames.FramePool
         Frames in contact, read from memory (:func:`contact_frames`).
     frames, warmup : int
         Readings measured, after ``warmup`` readings not counted.
@@ -322,7 +247,7 @@ def bench_bundle(path: Path, pool, frames: int = 1000, threads: int = 1, budget_
         The budget for the end-to-end total p99 (ms).
     repeats, pause_s : int, float
         Attempts at most, and the pause before a new one (only after an attempt over budget
-        on a busy machine; :func:`benchmarks.check.judge`).
+        on a busy machine; :func:`benchmarks.harness.budget.judge`).
 
     Returns
     -------
@@ -334,10 +259,9 @@ def bench_bundle(path: Path, pool, frames: int = 1000, threads: int = 1, budget_
     from tactile_force.edge.bundle.graph_facts import bundle_precision
     from tactile_force.edge.bundle.store import load_bundle
 
-    from .bundles import ModelConfig
-    from .check import JUDGED, judge
-    from .latency import LatencyCase, measure
-    from .stats import too_few_for_p99
+    from .harness.budget import JUDGED, judge
+    from .harness.latency import LatencyCase, ModelConfig, measure
+    from .harness.stats import too_few_for_p99
 
     bundle = load_bundle(path)
     m = bundle.manifest
@@ -372,7 +296,7 @@ def bench_bundle(path: Path, pool, frames: int = 1000, threads: int = 1, budget_
     return BundleResult(
         path=str(path), name=m.name, variant=str(m.variant), precision=precision, total_ms=_timing(s[JUDGED]),
         stages_ms=stages, error=None, manifest_re=_f(score), verdict=verdict_name,
-        attempts=[Attempt(_f(a.p99_ms), _machine_state(a.machine)) for a in attempts], note=note)
+        attempts=attempts, note=note)
 
 
 def _quiet(*names: str):
@@ -390,7 +314,7 @@ def _first_problem(bundle, pool, depth) -> str:
     from tactile_force.edge.reading import Flags
     from tactile_force.edge.runtime.loop import ForceRuntime, RuntimeOptions, Sensor
 
-    from .latency import MemorySource
+    from .harness.sources import MemorySource
 
     gate = ContactGate()
     gate.capture_background(pool.background)
@@ -430,9 +354,9 @@ def run_bench(bundles: Sequence[Path], frames: int = 1000, threads: int = 1, bud
     import cv2
     from tactile_force.edge.report.progress import progress
 
-    from .machine import describe_machine
+    from .harness.machine import describe_machine
 
-    mach = describe_machine()
+    machine = describe_machine()
     pool = pool if pool is not None else contact_frames()
     results = []
     prev = cv2.getNumThreads()
@@ -446,8 +370,6 @@ def run_bench(bundles: Sequence[Path], frames: int = 1000, threads: int = 1, bud
             results.append(r)
     finally:
         cv2.setNumThreads(prev)
-    machine = Machine(mach.cpu, mach.cores, _f(mach.ram_gib), mach.os, mach.python, mach.versions,
-                      mach.background_load)
     return BenchReport(SCHEMA, machine, float(budget_ms), int(threads), int(frames),
                        overall_verdict([r.verdict for r in results]), results, command)
 
@@ -489,30 +411,21 @@ def text_table(report: BenchReport) -> str:
                f"budget: total p99 <= {report.budget_ms:g} ms")
     for b in report.bundles:
         for i, a in enumerate(b.attempts, 1):
-            out.append(f"{b.name} attempt {i}: total p99 {_ms(a.total_p99_ms)} ms; {_state_line(a.machine)}")
+            out.append(f"{b.name} attempt {i}: total p99 {_ms(a.total_p99_ms)} ms; {a.machine.line()}")
         if b.verdict == "TOO_FEW_READINGS":
             out.append(f"{b.name}: {b.note}")
     out.append(f"verdict: {VERDICT_TEXT.get(report.verdict, report.verdict)}")
     return "\n".join(out)
 
 
-def _state_line(s: MachineState) -> str:
-    def g(v: float | None, fmt: str) -> str:
-        return "?" if v is None else format(v, fmt)
-
-    share = "unknown" if s.others_share is None else f"{100 * s.others_share:.0f} %"
-    return (f"load {g(s.load_before, '.2f')} -> {g(s.load_after, '.2f')}, CPU {g(s.mhz_before, '.0f')} -> "
-            f"{g(s.mhz_after, '.0f')} MHz, other processes used {share} of the cores over {s.seconds:.0f} s -> "
-            f"{'BUSY' if s.busy else 'quiet'}")
-
-
 def markdown(report: BenchReport) -> str:
-    """report.md: machine, command, the table, per-bin error, machine state per attempt."""
+    """report.md: command, commit, machine, the table, per-bin error, machine state per attempt."""
+    from .harness.paths import source_commit
+
     head, rows = table_rows(report)
     m = report.machine
     lines = ["# tactile-force bench", "", f"Command: `{report.command}`" if report.command else "",
-             f"Machine: {m.cpu}, {m.cores} logical cores, "
-             f"{'?' if m.ram_gib is None else f'{m.ram_gib:.0f}'} GiB RAM, {m.os}, Python {m.python}; {m.versions}.",
+             f"Commit: {source_commit()}", f"Machine: {m.line()}.",
              f"At start: {m.background_load}.", "",
              f"Latency in ms through `ForceRuntime` (in-memory source, frames in contact, {report.threads} thread(s), "
              f"{report.frames} frames); total = frame arrival -> reading. "
@@ -523,7 +436,7 @@ def markdown(report: BenchReport) -> str:
     for b in report.bundles:
         lines += ["", f"## {b.name}", "", f"Path: `{b.path}`." + (f" Note: {b.note}." if b.note else "")]
         for i, a in enumerate(b.attempts, 1):
-            lines.append(f"- attempt {i}: total p99 {_ms(a.total_p99_ms)} ms; {_state_line(a.machine)}")
+            lines.append(f"- attempt {i}: total p99 {_ms(a.total_p99_ms)} ms; {a.machine.line()}")
         if b.error is not None:
             e = b.error
             lines += ["", f"Error on `{e.data}` (background `{e.background}`): {e.n} CNN readings of "

@@ -1,4 +1,5 @@
-"""The shipped compact depth bundles (edge/models/d, edge/models/rgbmod_d) measured as users run them.
+"""The depth bundles page (depth_bundles.md): the shipped compact depth bundles (edge/models/d,
+edge/models/rgbmod_d) measured as users run them.
 
     python -m benchmarks.depth_bundles [--frames 2000] [--test-frames 0] [--write docs/benchmarks/depth_bundles.md]
 
@@ -10,7 +11,7 @@
 2. The compact RGBmod+D runtime total p50 against the compact RGBmod's (the default bundle),
    one thread, interleaved in one run: each step of one runtime is followed by a step of the
    other on the same frame, so both see the same machine load; the ratio is the figure
-   (issue 18 goal: <= 1.5). The D bundle is interleaved too.
+   (goal: <= 1.5). The D bundle is interleaved too.
 
 No torch is needed for the measurement (the test split's frames come from the reference
 dataset, rendered by the virtual DIGIT on first use and cached in benchmarks/cache).
@@ -27,7 +28,9 @@ from pathlib import Path
 
 import numpy as np
 
-REPO = Path(__file__).resolve().parents[1]
+from .harness.frames import contact_frames
+from .harness.machine import describe_machine, header
+from .harness.sources import ListSource, MemorySource
 
 
 @dataclass
@@ -66,8 +69,6 @@ def runtime_error(bundle_dir: Path, frames: np.ndarray, forces: np.ndarray, gain
     from tactile_force.edge.runtime.loop import ForceRuntime, RuntimeOptions, Sensor
     from tactile_force.edge.synthetic import VirtualDigit, VirtualDigitOptions
 
-    from .latency import ListSource
-
     bundle = load_bundle(bundle_dir)
     model = OnnxForceModel(bundle, threads=threads)
     digit = VirtualDigit(VirtualDigitOptions())
@@ -100,14 +101,11 @@ def iter_readings(rt):
 
 def interleaved_p50(bundles: list[Path], frames: int = 2000, warmup: int = 50, threads: int = 1) -> dict[str, dict]:
     """Runtime total p50/p99 (ms) of each bundle, interleaved step by step on the same contact
-    frames (benchmarks.bench.contact_frames), one thread."""
+    frames (:func:`benchmarks.harness.frames.contact_frames`), one thread."""
     import cv2
     from tactile_force.edge import ContactGate, OnnxForceModel, load_bundle
     from tactile_force.edge.reading import Flags
     from tactile_force.edge.runtime.loop import ForceRuntime, RuntimeOptions, Sensor, build_depth_stage
-
-    from .bench import contact_frames
-    from .latency import MemorySource
 
     cv2.setNumThreads(threads)
     pool = contact_frames(64, seed=0)
@@ -155,8 +153,6 @@ def main(argv: list[str] | None = None) -> int:
         os.environ.setdefault(v, "1")
     from tactile_force.edge import shipped_bundles
 
-    from .machine import describe_machine
-
     shipped = shipped_bundles()
     missing = [k for k in ("default", "d", "rgbmod_d") if k not in shipped]
     if missing:
@@ -182,8 +178,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.write:
         cmd = "python -m benchmarks.depth_bundles" + (f" --frames {args.frames}" if args.frames != 2000 else "") \
             + f" --write {args.write}"
-        args.write.write_text(f"# Shipped compact depth bundles\n\nCommand: `{cmd}`\n\nMachine: {machine.line()}; "
-                              f"{machine.background_load}\n\n{__doc__.split(chr(10) + chr(10), 1)[1]}\n{text}\n")
+        notes = (__doc__ or "").split("\n\n", 1)[1].rstrip()
+        args.write.write_text(header("Shipped compact depth bundles", cmd, machine, notes) + text + "\n")
     return 0
 
 

@@ -1,20 +1,21 @@
-"""Error against run time of every trained reference bundle: RE / MAE (mean +- std, per 1 N
-bin) on the held-out-indenter synthetic test split and on the real AUROVA frames, beside
-p50 / p99 latency; a Markdown table and a Pareto plot (docs/benchmarks/)."""
+"""Error against run time (error_vs_runtime.md, .json, .png) of every trained reference bundle:
+RE / MAE (mean +- std, per 1 N bin) on the held-out-indenter synthetic test split and on the
+real AUROVA frames, beside p50 / p99 latency; a Markdown table and a Pareto plot.
+
+    python -m benchmarks error [--out DIR]
+"""
 
 from __future__ import annotations
 
 import json
 from pathlib import Path
 
-import numpy as np
-
 from .bundles import trained_models
-from .evaluate import predict_all, real_frames, synthetic_test
-from .latency import LatencyCase, measure
-from .machine import command_line, describe_machine, header
-from .reference import CONFIGS
-from .stats import markdown_table
+from .harness.data import predict_all, real_frames
+from .harness.latency import LatencyCase, measure
+from .harness.machine import command_line, describe_machine, header
+from .harness.stats import markdown_table
+from .reference import CONFIGS, synthetic_test
 
 
 def evaluate_trained(frames: int = 300) -> list[dict]:
@@ -57,45 +58,13 @@ def _mae(st) -> str:
 
 
 def pareto_plot(rows: list[dict], path: Path, title: str) -> Path:
-    import matplotlib
+    """RE on the synthetic test split against p99, one point per bundle, the 1 ms budget
+    (:func:`tactile_force.edge.report.plots.error_vs_latency`)."""
+    from tactile_force.edge.report.plots import ParetoPoint, error_vs_latency
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from matplotlib.ticker import FixedLocator, NullFormatter, ScalarFormatter
-
-    fig, ax = plt.subplots(figsize=(7.5, 4.8), dpi=120)
-    colours = {"rgbmod": "tab:blue", "d": "tab:orange", "dmod": "tab:green", "rgbmod+d": "tab:purple"}
-    for r in rows:
-        variant = r["config"].rsplit("-", 2)[0]
-        int8 = r["precision"] == "int8-static"
-        ax.scatter(r["p99"], r["synthetic"].overall.re_mean, marker="o" if int8 else "s", s=42,
-                   facecolors=colours.get(variant, "gray") if int8 else "none", edgecolors=colours.get(variant, "gray"))
-        if int8:  # one label per model; its fp32 twin is the hollow square beside it
-            ax.annotate(r["config"], (r["p99"], r["synthetic"].overall.re_mean), fontsize=7, xytext=(5, -9),
-                        textcoords="offset points")
-    ax.scatter([], [], marker="o", c="k", s=30, label="int8 static")
-    ax.scatter([], [], marker="s", facecolors="none", edgecolors="k", s=30, label="fp32")
-    pts = sorted((r["p99"], r["synthetic"].overall.re_mean) for r in rows)
-    front, best = [], np.inf
-    for x, y in pts:
-        if y < best:
-            front.append((x, y))
-            best = y
-    if front:
-        ax.step(*zip(*front), where="post", color="k", lw=0.8, label="Pareto front")
-    ax.axvline(1.0, color="r", ls="--", lw=0.8, label="1 ms budget")
-    ax.set_xscale("log")
-    ax.xaxis.set_major_locator(FixedLocator([0.5, 0.75, 1, 1.5, 2, 3, 5, 8]))
-    ax.xaxis.set_major_formatter(ScalarFormatter())
-    ax.xaxis.set_minor_formatter(NullFormatter())
-    ax.set_xlabel("p99 latency, ms (gate + [depth] + inference, 1 thread)")
-    ax.set_ylabel("RE on held-out synthetic indenters")
-    ax.set_title(title, fontsize=9)
-    ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
-    return path
+    pts = [ParetoPoint(f"{r['config']} {'int8' if r['precision'] == 'int8-static' else r['precision']}", r["p99"],
+                       r["synthetic"].overall.re_mean) for r in rows]
+    return error_vs_latency(pts, 1.0, path, ylabel="RE on held-out synthetic indenters", title=title)
 
 
 def run(args, argv) -> None:
@@ -142,11 +111,11 @@ def run(args, argv) -> None:
 
 CALIBRATION_POINTER = ("`tactile-force calibrate-force` fitted on the 11 real AUROVA frames, leave-one-out and on the "
                        "11 held-out frames of the same grasp: [calibration.md](calibration.md) "
-                       "(`python -m benchmarks.calibration_study`). Distilled students (`tactile-force compress`) "
+                       "(`python -m benchmarks.calibration`). Distilled students (`tactile-force compress`) "
                        "against their teacher and against the same students trained with labels, on the held-out "
                        "synthetic indenters: [distillation.md](distillation.md) and "
-                       "[distillation_small_student.md](distillation_small_student.md) "
-                       "(`python -m benchmarks.distill_study`).")
+                       "[distillation_small_student.md](distillation_small_student.md) (measured by code since "
+                       "retired; each page names its commit).")
 
 NOTE = """Models: the reference recipe (`python -m benchmarks.reference`), trained from scratch on
 SYNTHETIC virtual DIGIT frames only (S1 split: 14 train / 2 val / 2 held-out test indenters).

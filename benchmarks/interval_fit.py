@@ -1,6 +1,6 @@
-"""Fit (or refresh) the ``interval`` of a bundle on virtual DIGIT grasps it never saw (issue 21).
+"""Fit (or refresh) the ``interval`` of a bundle on virtual DIGIT grasps it never saw.
 
-    python -m benchmarks.interval_fit                      # every bundle in edge/models/
+    python -m benchmarks.interval_fit                      # every bundle shipped in the package
     python -m benchmarks.interval_fit path/to/bundle --grasps 60 --coverage 0.9
 
 The bundle's model (with its force calibration, if any) runs through :class:`ForceRuntime`
@@ -23,9 +23,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-
-REPO = Path(__file__).resolve().parents[1]
-MODELS = REPO / "edge" / "models"
 
 #: Fresh virtual DIGIT seeds (VirtualDigitSource), used nowhere else in the project.
 CAL_SEED = 2101  #: calibration grasps: the interval of the shipped bundles is fitted on these
@@ -139,14 +136,10 @@ def fit_bundle(path: Path, seed: int = CAL_SEED, n_grasps: int = CAL_GRASPS, cov
     raise RuntimeError(f"{path}: model.onnx kept changing during {attempts} fits; run again when it is stable")
 
 
-def bundles_in(root: Path) -> list[Path]:
-    """Every bundle folder (holding model.json) under ``root``."""
-    return sorted(p.parent for p in root.rglob("model.json"))
-
-
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m benchmarks.interval_fit", description=__doc__.split("\n\n")[0])
-    ap.add_argument("bundles", nargs="*", type=Path, help="bundle folders (default: every bundle in edge/models/)")
+    ap.add_argument("bundles", nargs="*", type=Path,
+                    help="bundle folders (default: every bundle shipped in the package, edge/models/)")
     ap.add_argument("--grasps", type=int, default=CAL_GRASPS, help=f"calibration grasps (default {CAL_GRASPS})")
     ap.add_argument("--seed", type=int, default=CAL_SEED, help=f"VirtualDigitSource seed (default {CAL_SEED})")
     ap.add_argument("--coverage", type=float, default=0.9, help="stated coverage (default 0.9)")
@@ -155,7 +148,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"--seed {REPORT_SEED} is the report seed; fitting on it would make the report meaningless",
               file=sys.stderr)
         return 2
-    for p in args.bundles or bundles_in(MODELS):
+    from tactile_force.edge.scene import shipped_bundles
+
+    for p in args.bundles or list(shipped_bundles().values()):
         fit_bundle(p, args.seed, args.grasps, args.coverage)
     return 0
 

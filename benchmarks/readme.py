@@ -1,44 +1,63 @@
-"""docs/benchmarks/README.md: links every table and plot the benchmarks wrote."""
+"""The index of the benchmark pages (README.md in the pages' folder): one line per page, with
+the command that makes it; pages whose code was retired say so."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
+#: (page, what it holds, the command that makes it; "" for pages whose code was retired)
 PAGES = (
-    ("check.md", "The under-1 ms check through ForceRuntime: total p50 / p90 / p99 of the best RGBmod, the "
-                 "runtime's overhead over a bare onnxruntime session, D and RGBmod+D beside it, ratio to PyTorch "
-                 "eager, the machine's load per attempt"),
-    ("latency.md", "Issue 12's goals (before / after); latency per stage through ForceRuntime (gate, depth, "
-                   "inference, total, glue, bare onnxruntime, overhead) for every variant, precision, size and "
-                   "thread count; PyTorch eager, onnxruntime and OpenVINO side by side; two sensors; the demo's "
-                   "late readings; masked depth evaluation; the gate's cost"),
-    ("one_downscale.md", "Issue 18's goals (one downscale per frame): runtime total and gate against a bare "
-                         "onnxruntime session on the previous default graph (c1733e6), interleaved in one run; "
-                         "how the frame is reduced; the graph node by node and its variants; the under-1 ms check "
-                         "10 times back to back (`python -m benchmarks one-downscale --out docs/benchmarks`)"),
-    ("error_vs_runtime.md", "Error (RE / MAE, per 1 N bin; synthetic held-out indenters and real AUROVA frames) "
-                            "against p50 / p99 of every trained bundle"),
-    ("error_vs_runtime.png", "Pareto plot: RE against p99 latency"),
+    ("bench/report.md", "`tactile-force bench`, the installed robot-side verb (no torch): the three shipped "
+                        "bundles (RGBmod, D, RGBmod+D) through ForceRuntime on this host with the under-1 ms "
+                        "verdict per bundle (+ report.json, pareto.png)",
+     "tactile-force bench --out docs/benchmarks/bench"),
+    ("depth_bundles.md", "The shipped compact D and RGBmod+D bundles: error on the synthetic test split through "
+                         "ForceRuntime, and their total p50 against RGBmod interleaved",
+     "python -m benchmarks.depth_bundles --write docs/benchmarks/depth_bundles.md"),
+    ("intervals.md", "Every reading's error bar: coverage and width per force bin, synthetic and real after "
+                     "calibrate-force, cost per reading", "python -m benchmarks intervals --out docs/benchmarks"),
+    ("trust.md", "Frames that cannot be judged: silent wrong readings, false alarms, the trust checks' cost",
+     "python -m benchmarks trust --out docs/benchmarks"),
+    ("calibration.md", "Force calibration of the default bundle on real DIGIT frames",
+     "python -m benchmarks.calibration"),
     ("quantization.md", "Quantization study: calibration method x per-channel/per-tensor x nodes kept float; "
-                        "evaluating at a smaller input scale than trained"),
-    ("stability.md", "Stiff and extreme cases: non-finite outputs, flags, monotone sweeps, int8 vs fp32"),
+                        "evaluating at a smaller input scale than trained",
+     "python -m benchmarks quant --out docs/benchmarks"),
+    ("latency.md", "Latency per stage through ForceRuntime for every variant, precision, size and thread count; "
+                   "PyTorch eager, onnxruntime and OpenVINO side by side; two sensors; the demo's late readings; "
+                   "masked depth evaluation; the gate's cost",
+     "python -m benchmarks latency --out docs/benchmarks"),
+    ("error_vs_runtime.md", "Error (RE / MAE, per 1 N bin; synthetic held-out indenters and real AUROVA frames) "
+                            "against p50 / p99 of every trained bundle (+ error_vs_runtime.png, the Pareto plot)",
+     "python -m benchmarks error --out docs/benchmarks"),
+    ("stability.md", "Stiff and extreme cases: non-finite outputs, flags, monotone sweeps, int8 vs fp32",
+     "python -m benchmarks stability --out docs/benchmarks"),
+    ("one_downscale.md", "One downscale per frame: runtime total and gate against a bare onnxruntime session on "
+                         "the previous default graph, the graph node by node, the under-1 ms check 10 times", ""),
+    ("floors.md", "The least a gate and a runtime cost on this host against a bare session on the previous "
+                  "default graph", ""),
+    ("int8_head.md", "int8: keeping the head's input in float", ""),
+    ("distillation.md", "Distillation: students vs teacher vs labels", ""),
+    ("distillation_small_student.md", "Distillation: a smaller student, more frames and epochs", ""),
 )
 
 
 def write_readme(out: Path) -> Path:
+    """Write ``out``/README.md: every page of :data:`PAGES` (marked when not in ``out``), then
+    any other page found there."""
     lines = ["# Benchmarks", "",
-             "Every page states the machine and the command that made it. Regenerate everything with",
-             "", "    python -m benchmarks all --check --out docs/benchmarks   # everything, into these docs",
-             "    python -m benchmarks latency --check --out docs/benchmarks   # only latency.md and check.md",
-             "    python -m benchmarks all --quick   # smoke run into out/benchmarks (never into the docs)", "",
-             "Without `--out` results go to out/benchmarks (git-ignored). The check records the machine's load and",
-             "repeats when it is busy: 'machine busy' is reported apart from 'over budget'.", "",
-             "Trained models come from `python -m benchmarks.reference` (synthetic frames, CPU);",
-             "configs it has not trained yet are listed as 'not trained'.", ""]
-    for name, what in PAGES:
+             "Every page states the command that made it, the commit of the code that measured it, the machine "
+             "and its load. `python -m benchmarks --help` lists the commands; results go to out/benchmarks "
+             "(git-ignored) unless `--out` names this folder, and `--quick` runs never come here. Trained models "
+             "come from `python -m benchmarks.reference` (synthetic frames, CPU); configs it has not trained yet "
+             "are listed as 'not trained'. The under-1 ms verdict on a host is `tactile-force bench` "
+             "([bench/report.md](bench/report.md)); the old check.md (measured at commit 940127e on a retired "
+             "design) went with its code at commit 3e8ae14.", ""]
+    for name, what, command in PAGES:
         mark = "" if (out / name).exists() else " (not generated yet)"
-        lines.append(f"- [{name}]({name}): {what}{mark}")
-    known = {name for name, _ in PAGES} | {"README.md"}
+        how = f" (`{command}`)" if command else " (its code was retired: the page names the commit to check out)"
+        lines.append(f"- [{name}]({name}): {what}{how}{mark}")
+    known = {name for name, _, _ in PAGES} | {"README.md"}
     for f in sorted(out.glob("*.md")) if out.is_dir() else []:  # pages other studies wrote here
         if f.name not in known:
             title = next((ln.lstrip("# ").strip() for ln in f.read_text().splitlines() if ln.startswith("#")), "")

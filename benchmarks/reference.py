@@ -6,7 +6,8 @@ model can be rebuilt by anyone:
 
     python -m benchmarks.reference                     # every config in CONFIGS
     python -m benchmarks.reference --configs rgbmod-w0.25-s4 --epochs 30
-    python -m benchmarks.reference --default-bundle    # + rebuild edge/models/default
+    python -m benchmarks.reference --default-bundle    # + install the trained default (full-resolution graph)
+    python -m benchmarks.reference --network-input-default   # edge/models/default as shipped (graph surgery)
 
 Recipe (the paper's hyperparameters where they fit a CPU budget), run by the package's one
 training loop (tactile_force.export.training, also used by ``tactile-force compress``): Adam,
@@ -28,7 +29,8 @@ make the same depth. Their graphs start at the network resolution.
 
 installs the shipped compact D and RGBmod+D bundles (edge/models/d, edge/models/rgbmod_d).
 
-Outputs (benchmarks/cache/, not committed): the synthetic dataset, depth images,
+Outputs (the cache dir, benchmarks/cache/ in a clone or $TACTILE_FORCE_CACHE; not committed):
+the synthetic dataset, depth images,
 checkpoints, fp32 / int8 bundles and a JSON record per config with the test error.
 """
 
@@ -44,11 +46,16 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
+from tactile_force.edge.scene import PACKAGE_DIR, default_bundle_path
 
-REPO = Path(__file__).resolve().parents[1]
-CACHE = Path(os.environ.get("TACTILE_FORCE_CACHE", REPO / "benchmarks" / "cache"))
-DEFAULT_BUNDLE_DIR = REPO / "edge" / "models" / "default"
-REAL_DATA = REPO.parent / "shared" / "data" / "aurova_digit_grasp"
+from .harness.data import Labelled, predict_all
+from .harness.frames import (
+    VIRTUAL_DEPTH_MAPPING,
+    network_reduction,
+    virtual_depth_record,
+    virtual_depth_stage,
+)
+from .harness.paths import cache_dir, require_repo
 
 #: Dataset used by every reference model (changing it changes every figure in docs/).
 DATASET_N = 4000
@@ -111,15 +118,6 @@ def network_resolution(cfg: TrainConfig) -> bool:
     return cfg.variant != "rgbmod" and cfg.k > 1
 
 
-def network_reduction(k: int):
-    """How a frame is reduced to the network input of the network-resolution configs: the
-    package's default for the factor (edge/gate/reduce.py), recorded in the manifest's inputs and
-    depth record."""
-    from tactile_force.edge.gate.reduce import default_reduction
-
-    return default_reduction(k)
-
-
 def reduce_frames(frames: np.ndarray, k: int) -> np.ndarray:
     """(N, 320, 240, C) uint8 -> (N, 320/k, 240/k, C) uint8 with the network reduction."""
     from tactile_force.edge.gate.reduce import reduce_frames as _reduce
@@ -134,7 +132,7 @@ def log(msg: str) -> None:
 # ----------------------------------------------------------------------------- data
 
 def dataset_root() -> Path:
-    return CACHE / f"synth-n{DATASET_N}-seed{DATASET_SEED}-above{ABOVE_RANGE_SHARE:g}"
+    return cache_dir() / f"synth-n{DATASET_N}-seed{DATASET_SEED}-above{ABOVE_RANGE_SHARE:g}"
 
 
 def ensure_dataset() -> Path:
@@ -238,34 +236,6 @@ def load_arrays(root: Path, with_depth: bool = False, depth_downscales: tuple[in
     return arrays
 
 
-VIRTUAL_DEPTH_MAPPING = REPO / "edge" / "assets" / "virtual_digit_depth.npz"
-#: 8-bit levels per pixel of reconstructed indentation for the virtual DIGIT. Its
-#: reconstructed heights reach ~46 px at 15 N (p99 43 px), so 255 levels span 48 px; the
-#: depth stage's default (255/20) would clip 69 % of the training frames at 255.
-VIRTUAL_DEPTH_LEVELS_PER_PX = 255.0 / 48.0
-
-
-def virtual_depth_stage(downscale: int = 1):
-    """The runtime's depth stage as the reference depth models were trained with it
-    (``downscale`` k: at the network resolution 320/k x 240/k)."""
-    from tactile_force.edge.depth import DepthOptions, DepthStage
-
-    rec = virtual_depth_record(downscale)
-    return DepthStage(DepthOptions(mapping=VIRTUAL_DEPTH_MAPPING, mode=rec.mode,
-                                   levels_per_px=VIRTUAL_DEPTH_LEVELS_PER_PX, downscale=rec.downscale,
-                                   reduction=rec.reduction.method.value))
-
-
-def virtual_depth_record(downscale: int = 1):
-    """The manifest's depth record of the reference depth models (what the runtime rebuilds)."""
-    from tactile_force.edge.bundle.manifest import DepthRecord
-    from tactile_force.edge.bundle.store import sha256_file
-
-    return DepthRecord(mapping=f"package:{VIRTUAL_DEPTH_MAPPING.name}", mode="exact",
-                       levels_per_px=VIRTUAL_DEPTH_LEVELS_PER_PX, mapping_sha256=sha256_file(VIRTUAL_DEPTH_MAPPING),
-                       mask="contact gate (GateOptions defaults)", reduction=network_reduction(downscale))
-
-
 def depth_images(root: Path, rgb: np.ndarray, downscale: int = 1, meta: list[dict] | None = None) -> np.ndarray:
     """Depth images of every frame, made as the runtime makes them: the contact gate's
     mask + the depth stage with the virtual DIGIT's calibration
@@ -307,6 +277,18 @@ def depth_images(root: Path, rgb: np.ndarray, downscale: int = 1, meta: list[dic
     np.save(tmp, out)
     os.replace(tmp, cache)
     return out
+
+
+# ----------------------------------------------------------------------------- labelled frames
+
+def synthetic_test(with_depth: bool) -> Labelled:
+    """The held-out-indenter test split of the reference dataset."""
+    arrays = load_arrays(ensure_dataset(), with_depth=with_depth)
+    idx = arrays.select("test")
+    return Labelled(arrays.rgb[idx], arrays.depth[idx] if with_depth else None, arrays.force[idx].astype(np.float64),
+                    f"synthetic test split ({SPLIT}, held-out indenters, {len(idx)} frames)")
+
+
 
 
 # ----------------------------------------------------------------------------- training
@@ -410,7 +392,7 @@ DEFAULT_NOTE = ("Trained on SYNTHETIC frames from the package's virtual DIGIT on
 
 
 def install_default_bundle(int8_bundle: Path) -> Path:
-    """Copy a trained int8 bundle into edge/models/default with the synthetic-data note."""
+    """Copy a trained int8 bundle into the package's models/default with the synthetic-data note."""
     from tactile_force.edge.bundle.store import load_bundle, write_bundle
 
     src = load_bundle(int8_bundle)
@@ -418,7 +400,49 @@ def install_default_bundle(int8_bundle: Path) -> Path:
     manifest.name = "default-rgbmod-compact-int8"
     manifest.provenance.note = DEFAULT_NOTE
     manifest.provenance.trained_on = "synthetic"
-    return write_bundle(DEFAULT_BUNDLE_DIR, src.onnx_path.read_bytes(), manifest, overwrite=True).path
+    return write_bundle(default_bundle_path(), src.onnx_path.read_bytes(), manifest, overwrite=True).path
+
+
+#: The default graph as the reference recipe installed it before the network-input cut (a
+#: loadable bundle: full-resolution uint8 input, the 4x4 AveragePool inside the graph), in the clone.
+REFERENCE_GRAPH = Path("benchmarks") / "reference_graphs" / "default_c1733e6.onnx"
+
+
+def network_input_default(dest: Path | None = None) -> Path:
+    """Rebuild the shipped default bundle: :data:`REFERENCE_GRAPH` cut at the network
+    resolution (:func:`tactile_force.export.network_input.network_input_bundle`, same
+    weights), the package's reduction at x4 recorded, its error re-measured on the
+    synthetic test split."""
+    import tempfile
+    from dataclasses import replace
+
+    from tactile_force.edge import OnnxForceModel, load_bundle
+    from tactile_force.edge.bundle.manifest import ErrorFigures
+    from tactile_force.edge.bundle.store import write_bundle
+    from tactile_force.edge.data.metrics import error_stats
+    from tactile_force.export.network_input import network_input_bundle
+
+    src = require_repo("rebuilding the shipped default from its reference graph") / REFERENCE_GRAPH
+    dest = dest or default_bundle_path()
+    red = network_reduction(4)
+    with tempfile.TemporaryDirectory() as tmp:
+        b = network_input_bundle(src, Path(tmp) / "b", red, name="default-rgbmod-compact-int8")
+        syn = synthetic_test(False)
+        stats = error_stats(predict_all(OnnxForceModel(b), syn), syn.force)
+        m = b.manifest
+        assert m.error is not None
+        # The graph's forces changed by the reduction's rounding: re-measured; the fp32 graph's
+        # figures stay what they were (it was measured with the in-graph average).
+        m.error = replace(m.error, data=f"{syn.source}; reduced by {red.method.value} x{red.factor}",
+                          frames=len(syn.force), vs_truth=ErrorFigures(**stats.as_dict()), vs_fp32=None)
+        m.provenance.extra = {**m.provenance.extra,
+                              "network_input": f"graph surgery of the c1733e6 default (4x4 AveragePool removed, "
+                                               f"same weights): python -m benchmarks.reference "
+                                               f"--network-input-default; frames reduced by {red.method.value} "
+                                               f"x{red.factor}"}
+        out = write_bundle(dest, b.onnx_path.read_bytes(), m, overwrite=True)
+    log(f"wrote {out.path}: synthetic test {stats}")
+    return load_bundle(dest).path
 
 
 DEPTH_NOTE = ("Trained on SYNTHETIC frames from the package's virtual DIGIT only, with depth images made at the "
@@ -428,12 +452,53 @@ DEPTH_NOTE = ("Trained on SYNTHETIC frames from the package's virtual DIGIT only
               "stage (calibrate-depth) and train on your own labelled frames before trusting its newtons.")
 
 
+def default_data_stats(n: int = 600, seed: int = 0):
+    """data_stats for the embedded default bundle: ``n`` frames drawn like its training set
+    (benchmarks.reference: the virtual DIGIT, the paper's 18 indenters, 6 % above 15 N, LED
+    spread 3 %) seen through the gate against the shipped no-contact background. Cached in
+    the cache dir as trust_data_stats-nN-seedS.json."""
+    import tempfile
+
+    import cv2
+    from tactile_force.edge import AuthorsDataset
+    from tactile_force.edge.bundle.data_stats import DataStats
+    from tactile_force.edge.fitting.data_stats import compute_data_stats
+    from tactile_force.edge.synthetic import DatasetOptions, ForceDistribution, generate_dataset
+    from tactile_force.edge.typed_json import from_json, to_json
+
+    cache = cache_dir() / f"trust_data_stats-n{n}-seed{seed}.json"
+    if cache.is_file():
+        import json
+
+        return from_json(DataStats, json.loads(cache.read_text()), "data_stats")
+    with tempfile.TemporaryDirectory() as tmp:
+        generate_dataset(Path(tmp) / "ds", DatasetOptions(n=n, seed=seed, progress=False,
+                                                          forces=ForceDistribution(above_fraction=ABOVE_RANGE_SHARE)))
+        ds = AuthorsDataset(Path(tmp) / "ds")
+        frames = [ds[i].frame for i in range(len(ds))]
+    bg = cv2.imread(str(PACKAGE_DIR / "assets" / "digit_background.png"))
+    stats = compute_data_stats(frames, bg, source=f"{n} synthetic frames drawn like the default bundle's training set "
+                                                  f"(virtual DIGIT, paper indenters, seed {seed})")
+    cache.parent.mkdir(parents=True, exist_ok=True)
+    import json
+
+    cache.write_text(json.dumps(to_json(stats), indent=1))
+    return stats
+
+
+def attach_data_stats(bundle_dir: Path, stats) -> None:
+    """Store ``stats`` as the manifest's data_stats of the bundle folder (rewritten atomically)."""
+    from tactile_force.edge.bundle.store import load_bundle, write_bundle
+
+    b = load_bundle(bundle_dir)
+    b.manifest.data_stats = stats
+    write_bundle(bundle_dir, b.onnx_path.read_bytes(), b.manifest, overwrite=True)
+
+
 def install_shipped_bundle(folder: str, bundle: Path) -> Path:
     """Copy a trained depth bundle into edge/models/<folder> with the synthetic-data note and
     the default bundle's data statistics (the same training distribution, seen by the gate)."""
     from tactile_force.edge.bundle.store import load_bundle, write_bundle
-
-    from .trust import default_data_stats
 
     src = load_bundle(bundle)
     m = src.manifest
@@ -452,7 +517,7 @@ def install_shipped_bundle(folder: str, bundle: Path) -> Path:
         from tactile_force.export.graph import op_counts
 
         m.quantization.op_counts = dict(op_counts(onnx.load_from_string(graph)))
-    path = write_bundle(REPO / "edge" / "models" / folder, graph, m, overwrite=True).path
+    path = write_bundle(default_bundle_path().parent / folder, graph, m, overwrite=True).path
     from .interval_fit import fit_bundle
 
     fit_bundle(path)  # the reading interval of this graph (the source's was fitted on another sha256)
@@ -515,10 +580,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--retrain", action="store_true", help="ignore cached checkpoints")
     ap.add_argument("--default-bundle", action="store_true",
                     help=f"install {DEFAULT_MODEL}'s int8 bundle as edge/models/default")
+    ap.add_argument("--network-input-default", action="store_true",
+                    help="rebuild edge/models/default as shipped: the default graph of benchmarks/reference_graphs "
+                         "cut at the network resolution (no training)")
     ap.add_argument("--shipped-bundles", action="store_true",
                     help="install the int8 bundles of " + ", ".join(SHIPPED_DEPTH_BUNDLES.values())
                     + " as edge/models/" + ", edge/models/".join(SHIPPED_DEPTH_BUNDLES))
     args = ap.parse_args(argv)
+    if args.network_input_default:
+        network_input_default()
+        return 0
     names = [c for c in args.configs.split(",") if c]
     unknown = [c for c in names if c not in CONFIGS]
     if unknown:
@@ -533,16 +604,16 @@ def main(argv: list[str] | None = None) -> int:
         cfg = CONFIGS[name]
         if args.epochs:
             cfg = TrainConfig(cfg.variant, cfg.width, cfg.k, args.epochs, cfg.lr, cfg.batch, cfg.seed)
-        out = CACHE / "models" / name
+        out = cache_dir() / "models" / name
         if args.retrain or not (out / "record.json").is_file():
             train(cfg, data, out)
         make_bundles(cfg, data, out, force=args.retrain)
     if args.default_bundle:
-        path = install_default_bundle(CACHE / "models" / DEFAULT_MODEL / "int8")
+        path = install_default_bundle(cache_dir() / "models" / DEFAULT_MODEL / "int8")
         log(f"installed default bundle at {path}")
     if args.shipped_bundles:
         for folder, name in SHIPPED_DEPTH_BUNDLES.items():
-            path = install_shipped_bundle(folder, CACHE / "models" / name / "int8")
+            path = install_shipped_bundle(folder, cache_dir() / "models" / name / "int8")
             log(f"installed {name} at {path}")
     return 0
 

@@ -20,9 +20,7 @@ the counts and the tests exercise the same cases. The fault cases are fixed list
 from __future__ import annotations
 
 import contextlib
-import enum
 import functools
-import io
 import json
 import logging
 import math
@@ -33,8 +31,6 @@ import signal
 import subprocess
 import sys
 import tempfile
-import threading
-import traceback
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -44,7 +40,23 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-REPO = Path(__file__).resolve().parents[1]
+from .harness.cases import (  # noqa: F401 - the suite's tests import these from here too
+    BAD,
+    Outcome,
+    Verdict,
+    accepted,
+    cli_verdict,
+    default_bundle_dir,
+    make_dataset,
+    refusal,
+    run_cli,
+    with_timeout,
+    worst,
+    write_frame_png,
+)
+from .harness.paths import require_repo
+
+REPO = require_repo("the robustness suite (its workers are in tests/robustness)")
 KILL_WORKER = REPO / "tests" / "robustness" / "record_kill_worker.py"
 DOCS = REPO / "docs" / "robustness.md"
 MAX_FORCE_N = 200.0
@@ -52,150 +64,14 @@ MAX_FORCE_N = 200.0
 
 def use_package_root(root: str | os.PathLike) -> None:
     """Import ``tactile_force`` from ``root`` (a folder holding tactile_force/edge, /export,
-    /firmware_bridge) instead of the installed package: used to run this catalogue against an
-    older commit (benchmarks/robustness_baseline.py). Call before tactile_force is imported."""
+    /firmware_bridge) instead of the installed package: used to run a test against an older
+    commit's package (tests/robustness/tf_cli.py). Call before tactile_force is imported."""
+    for name in [m for m in sys.modules if m == "tactile_force" or m.startswith("tactile_force.")]:
+        del sys.modules[name]  # imported before (by this suite's own modules): import again from root
     sys.meta_path[:] = [f for f in sys.meta_path if "editable" not in repr(f).lower()]
     sys.path[:] = [p for p in sys.path if "__editable__" not in p]
     sys.path.insert(0, str(root))
     os.environ["TF_PACKAGE_ROOT"] = str(root)  # the kill -9 worker subprocess follows
-
-
-class Outcome(str, enum.Enum):
-    ACCEPTED = "accepted"
-    CLEAR = "clear error"
-    VALID_REFUSED = "valid refused"
-    TRACEBACK = "traceback"
-    SILENT_WRONG = "silent wrong"
-    HANG = "hang"
-    DATA_LOST = "data lost"
-
-
-#: Outcomes a robust package never produces.
-BAD = frozenset({Outcome.VALID_REFUSED, Outcome.TRACEBACK, Outcome.SILENT_WRONG, Outcome.HANG, Outcome.DATA_LOST})
-_WORST = [Outcome.ACCEPTED, Outcome.CLEAR, Outcome.VALID_REFUSED, Outcome.HANG, Outcome.TRACEBACK,
-          Outcome.SILENT_WRONG, Outcome.DATA_LOST]
-
-
-@dataclass
-class Verdict:
-    outcome: Outcome
-    detail: str = ""
-
-    @property
-    def ok(self) -> bool:
-        return self.outcome not in BAD
-
-    def __str__(self) -> str:
-        return f"{self.outcome.value}: {self.detail}"
-
-
-def worst(verdicts: list[Verdict]) -> Verdict:
-    return max(verdicts, key=lambda v: _WORST.index(v.outcome))
-
-
-def _tf_error() -> type[BaseException]:
-    from tactile_force.edge.errors import TactileForceError
-
-    return TactileForceError
-
-
-def refusal(exc: BaseException, should_fail: bool | None, *, names: tuple[str, ...] = ()) -> Verdict:
-    """Classify an exception: a TactileForceError with a message (naming ``names``) is a clear
-    error when the input was bad (or may be), a false alarm when it was valid."""
-    if not isinstance(exc, _tf_error()):
-        return Verdict(Outcome.TRACEBACK, f"{type(exc).__name__}: {exc}"[:300])
-    msg = str(exc)
-    missing = [n for n in names if n not in msg]
-    if not msg.strip() or missing:
-        return Verdict(Outcome.TRACEBACK, f"unclear message (missing {missing}): {msg[:200]}")
-    if should_fail is False:
-        return Verdict(Outcome.VALID_REFUSED, msg[:300])
-    return Verdict(Outcome.CLEAR, msg[:300])
-
-
-def accepted(should_fail: bool | None, detail: str = "") -> Verdict:
-    if should_fail:
-        return Verdict(Outcome.SILENT_WRONG, f"accepted: {detail}"[:300])
-    return Verdict(Outcome.ACCEPTED, detail[:300])
-
-
-def with_timeout(fn: Callable[[], Verdict], timeout_s: float) -> Verdict:
-    """Run ``fn`` in a thread; HANG when it does not return within ``timeout_s``."""
-    box: list[Verdict] = []
-
-    def run() -> None:
-        try:
-            box.append(fn())
-        except BaseException as exc:  # noqa: BLE001 - every escape is classified
-            box.append(Verdict(Outcome.TRACEBACK, f"{type(exc).__name__}: {exc}"[:300]))
-
-    t = threading.Thread(target=run, daemon=True)
-    t.start()
-    t.join(timeout_s)
-    if t.is_alive():
-        return Verdict(Outcome.HANG, f"no answer in {timeout_s:g} s")
-    return box[0]
-
-
-def run_cli(argv: list[str]) -> tuple[int, str, str]:
-    """``tactile-force ARGV`` in-process: (exit code, stdout, stderr); argparse's exit is caught."""
-    from tactile_force.edge.cli import main
-
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        try:
-            rc = int(main(list(argv)) or 0)
-        except SystemExit as exc:
-            rc = exc.code if isinstance(exc.code, int) else 2
-        except Exception:  # what the console script would print: a traceback, exit 1
-            traceback.print_exc(file=sys.stderr)
-            rc = 1
-    return rc, out.getvalue(), err.getvalue()
-
-
-def cli_verdict(argv: list[str], want_rc: set[int], should_fail: bool, names: tuple[str, ...] = ()) -> Verdict:
-    try:
-        rc, out, err = run_cli(argv)
-    except BaseException as exc:  # noqa: BLE001
-        return Verdict(Outcome.TRACEBACK, f"{' '.join(argv)}: {type(exc).__name__}: {exc}"[:300])
-    text = out + err
-    if "Traceback" in text:
-        return Verdict(Outcome.TRACEBACK, f"{' '.join(argv)}: printed a traceback")
-    if rc == 0 and should_fail:
-        return Verdict(Outcome.SILENT_WRONG, f"{' '.join(argv)}: exit 0")
-    if rc not in want_rc:
-        return Verdict(Outcome.TRACEBACK, f"{' '.join(argv)}: exit {rc}, expected {sorted(want_rc)}: {err[-200:]}")
-    missing = [n for n in names if n not in text]
-    if missing:
-        return Verdict(Outcome.TRACEBACK, f"{' '.join(argv)}: message does not name {missing}: {err[-200:]}")
-    return Verdict(Outcome.CLEAR if should_fail else Outcome.ACCEPTED, f"exit {rc}: {err.strip()[-160:]}")
-
-
-# =============================================================================== frames on disk
-def write_frame_png(path: Path, seed: int = 0, noise: bool = False) -> np.ndarray:
-    """A 320x240x3 uint8 BGR frame (smooth, or incompressible noise) written as PNG."""
-    import cv2
-
-    rng = np.random.default_rng(seed)
-    if noise:
-        frame = rng.integers(0, 256, (320, 240, 3), dtype=np.uint8)
-    else:
-        frame = np.full((320, 240, 3), 100, np.uint8)
-        frame[100:200, 60:180] = rng.integers(90, 140, 3, dtype=np.uint8)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    cv2.imwrite(str(path), frame)
-    return frame
-
-
-def make_dataset(root: Path, n: int = 1, forces: list[float] | None = None) -> Path:
-    """An authors'-layout dataset of ``n`` synthetic frames with valid labels."""
-    from tactile_force.edge.data.dataset import AuthorsDatasetWriter
-
-    with AuthorsDatasetWriter(root) as w:
-        for i in range(n):
-            frame = np.full((320, 240, 3), 90 + i, np.uint8)
-            w.write(frame, (forces or [1.0 + i] * n)[i], meta={"k": i})
-    return root
 
 
 # =============================================================================== labels
@@ -437,13 +313,6 @@ def probe_exposure(frame: np.ndarray) -> Verdict:
 
 
 # =============================================================================== manifests
-def default_bundle_dir() -> Path:
-    """The default bundle of the installed package (edge/models/default)."""
-    import tactile_force.edge
-
-    return Path(tactile_force.edge.__file__).resolve().parent / "models" / "default"
-
-
 def _paths(obj: Any, prefix: tuple = ()) -> Iterator[tuple]:
     yield prefix
     if isinstance(obj, dict):
@@ -504,7 +373,7 @@ def manifest_mutations(draw) -> tuple[str, Any]:
     return f"{tag}{'.'.join(map(str, path))} = {json.dumps(new)[:60]}", m
 
 
-#: hand-picked manifests from issue 11 (a matching hash and a graph that does not fit)
+#: hand-picked manifests that crashed at commit 9ed225d (a matching hash and a graph that does not fit)
 def targeted_manifests() -> list[tuple[str, Any]]:
     out: list[tuple[str, Any]] = []
     for path, value in ((("variant",), "d"), (("variant",), "rgbmod+d"), (("onnx_file",), "../../x/model.onnx"),
@@ -649,7 +518,7 @@ def probe_scene(folder: Path, case: tuple[str, Callable[[dict], dict]]) -> Verdi
 
 
 def targeted_scenes() -> list[tuple[str, Callable[[dict], dict], bool]]:
-    """The scenes of issue 11 that crashed: (what, mutation, must_refuse)."""
+    """The scenes that crashed at commit 9ed225d: (what, mutation, must_refuse)."""
 
     def setter(section: str, key: str, value: Any) -> Callable[[dict], dict]:
         def f(scene: dict) -> dict:
@@ -1135,7 +1004,7 @@ def run_catalogue(examples: int = 100, log: Callable[[str], None] = print) -> li
         for paced in (False, True):
             t.add(probe_replay_vanish(base, paced))
 
-        from . import robustness_issue19 as i19
+        from . import robustness_inputs as i19
 
         t = category("inputs never destroyed (each writing verb aimed at its inputs, --force included)")
         ifolder = base / "inputs"
@@ -1235,7 +1104,7 @@ Rules the counts are judged by (docs match code: `edge/data/labels.py`, `export/
   the latest, by `OnnxForceModel` and `bundle verify`; any other mutation may load or be
   refused, but never with another exception type.
 
-Issue 19's cases (`benchmarks/robustness_issue19.py`): every writing verb aimed at its own
+Inputs, presses, depth and MCAP cases (`benchmarks/robustness_inputs.py`): every writing verb aimed at its own
 inputs (`--out` = the folder holding the source bundle or checkpoint, = the presses folder, =
 the source itself, inside it; `--force` included) must refuse with exit 2 and leave every input
 byte for byte (else **data lost**); an existing output is replaced only with `--force`; a FIFO
@@ -1308,7 +1177,7 @@ ones stop within 120 s (else **hang**).
   there): both exit 2 naming the problem and `run` changes nothing; `scene show` exit 0 is
   **silent wrong**."""
 
-#: Issue 11 "What was measured" bullets -> the tests that fail on 9ed225d and pass now.
+#: Findings at commit 9ed225d -> the tests that fail there and pass now.
 COVERAGE = [
     ("Non-UTF-8 label kills replay / dataset reader / `quantize --calib`",
      "tests/robustness/test_labels.py::test_every_reader_agrees_on_every_label, "
@@ -1328,7 +1197,7 @@ COVERAGE = [
      "tests/edge/bundle/test_bundle_writes.py::test_graphs_that_break_the_frame_contract_are_refused_at_load, "
      "tests/edge/bundle/test_manifest.py::test_bundle_verify_refuses_a_variant_the_graph_does_not_have, "
      "::test_onnx_file_outside_the_bundle_is_never_followed, ::test_damaged_manifest_files_name_the_file; "
-     "tests/robustness/test_manifests.py (property test + the issue's manifests through load, verify and show)"),
+     "tests/robustness/test_manifests.py (property test + the hand-picked manifests through load, verify and show)"),
     ("Disk full during `record`: raw OSError, summary lost",
      "tests/robustness/test_record_faults.py::test_disk_full_stops_cleanly_with_the_summary"),
     ("Scene values give TypeError / ZeroDivisionError / ValueError; `scene show` too lenient (B1)",
@@ -1361,7 +1230,7 @@ COVERAGE = [
 ]
 
 
-#: Issue 19 "What was measured" bullets (this helper's part) -> the tests that fail on c1733e6 and pass now.
+#: Findings at commit c1733e6 -> the tests that fail there and pass now.
 COVERAGE_19 = [
     ("Labels with a decimal comma (`1,08` read as 1.0 N) accepted by calibrate-force",
      "tests/robustness/test_labels_grammar.py::test_decimal_comma_and_units_are_errors_naming_the_file, "
@@ -1395,12 +1264,7 @@ COVERAGE_19 = [
      "tests/edge/scene/test_scene_validation.py::test_bad_flags_exit_2_with_a_clear_line"),
 ]
 
-BASELINE_COMMIT = "9ed225d"
-#: Commits the catalogue is also run against: (commit, what it was before).
-BASELINES = [(BASELINE_COMMIT, "before issue 11"), ("c1733e6", "before issue 19")]
-
-
-def page(tallies: list[Tally], command: str, examples: int, baseline: str | dict[str, str] = "") -> str:
+def page(tallies: list[Tally], command: str, examples: int) -> str:
     from .machine import describe_machine, header
 
     disk = next((t.note for t in tallies if t.note), "")
@@ -1410,28 +1274,16 @@ def page(tallies: list[Tally], command: str, examples: int, baseline: str | dict
              f"Disk full was made with: {disk}.", ""]
     if bad:
         lines += ["## Cases that went wrong", ""] + [f"* {b}" for b in bad] + [""]
-    baselines = {BASELINE_COMMIT: baseline} if isinstance(baseline, str) else baseline
-    for commit, what in BASELINES:
-        if not baselines.get(commit):
-            continue
-        lines += [f"## The same catalogue at commit {commit} ({what})", "",
-                  f"Command: `python -m benchmarks.robustness_baseline {commit} --examples {examples}` "
-                  "(that commit's package, this checkout's cases and oracles; run by the command above).", "",
-                  baselines[commit], "",
-                  "At that commit some categories fail for reasons beyond the one tested (e.g. at 9ed225d "
-                  "`record --repair` did not exist, so every truncation case is also a usage error there; a "
-                  "case of a later issue may also fail on a flag that did not exist yet); a case counts once, "
-                  "under the worst outcome.", ""]
-    lines += ["## Issue 11's findings and the tests that pin them", "",
+    lines += ["## Findings at commit 9ed225d and the tests that pin them", "",
               "Each test fails on commit 9ed225d's behaviour and passes now; (lead) and (B1) name the "
               "helpers whose code and tests cover that part.", "",
               "| finding at 9ed225d | tests |", "|---|---|"]
     lines += [f"| {a} | {b} |" for a, b in COVERAGE]
-    lines += ["", "## Issue 19's findings and the tests that pin them", "",
+    lines += ["", "## Findings at commit c1733e6 and the tests that pin them", "",
               "Each test fails on commit c1733e6 (checked by running it against that commit's package: "
-              "`benchmarks.robustness.use_package_root`, as the baseline does) and passes now. The other part "
-              "of issue 19 (shared models, data statistics, sensor fingerprint, background contact check, "
-              "bundle verify, compress decisions) is pinned by its own helper's tests.", "",
+              "`benchmarks.robustness.use_package_root`) and passes now. The other findings of that review "
+              "(shared models, data statistics, sensor fingerprint, background contact check, "
+              "bundle verify, compress decisions) are pinned by their own tests.", "",
               "| finding at c1733e6 | tests |", "|---|---|"]
     lines += [f"| {a} | {b} |" for a, b in COVERAGE_19]
     lines += ["", "The suite itself: `python -m pytest -q tests/robustness` (bounded hypothesis runs, "
@@ -1455,19 +1307,8 @@ def run(args, argv: list[str]) -> int:
     print(table(tallies))
     for b in failures(tallies):
         print(f"  ! {b}")
-    baseline: dict[str, str] = {}
-    if not args.quick:
-        from .robustness_baseline import baseline_table
-
-        for commit, _what in BASELINES:
-            print(f"the same catalogue at {commit} ...", flush=True)
-            try:
-                baseline[commit] = baseline_table(commit, examples)
-            except (subprocess.CalledProcessError, subprocess.TimeoutExpired, RuntimeError, OSError) as exc:
-                baseline[commit] = f"(not run: {str(exc)[:300]})"
-            print(baseline[commit])
     out.mkdir(parents=True, exist_ok=True)
     dest = out / "robustness.md"
-    dest.write_text(page(tallies, command_line(argv), examples, baseline))
+    dest.write_text(page(tallies, command_line(argv), examples))
     print(f"wrote {dest}")
     return 1 if failures(tallies) else 0

@@ -1,4 +1,5 @@
-"""Stability on stiff and extreme cases, through the real runtime (gate, depth stage, ORT).
+"""Stability on stiff and extreme cases (stability.md), through the real runtime (gate, depth
+stage, ORT).
 
 Cases rendered with the virtual DIGIT: very rigid small indenters, soft objects, force
 sweeps 0-1 N and 15-20 N, contacts at the gel's curved edge, dark / over-exposed / noisy /
@@ -16,11 +17,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .bundles import PRECISIONS, ModelConfig, latency_bundle, trained_models
-from .frames import depth_stage, frame_pool
-from .latency import ListSource
-from .machine import command_line, describe_machine, header
-from .stats import markdown_table
+from .bundles import PRECISIONS, latency_bundle, trained_models
+from .harness.frames import frame_pool, virtual_depth_stage
+from .harness.latency import ModelConfig
+from .harness.machine import command_line, describe_machine, header
+from .harness.sources import ListSource
+from .harness.stats import markdown_table
 
 
 @dataclass
@@ -35,7 +37,7 @@ class Case:
 
 
 @dataclass
-class Outcome:
+class CaseReadings:
     """Readings of one bundle on one case."""
 
     raw: np.ndarray
@@ -95,13 +97,13 @@ def build_cases(quick: bool = False) -> list[Case]:
     return cases
 
 
-def run_case(model, case: Case, background: np.ndarray) -> Outcome:
+def run_case(model, case: Case, background: np.ndarray) -> CaseReadings:
     from tactile_force.edge import ContactGate, Flags, ForceRuntime, RuntimeOptions, Sensor
 
     gate = ContactGate()
     gate.capture_background(background)
     rt = ForceRuntime([Sensor("s", ListSource(case.frames, case.truth), gate)], model,
-                      RuntimeOptions(deadline_ms=1e9), depth_factory=depth_stage)
+                      RuntimeOptions(deadline_ms=1e9), depth_factory=virtual_depth_stage)
     readings = []
     rt.run(on_reading=readings.append)
     raw = np.array([r.raw_force_n for r in readings])
@@ -114,7 +116,7 @@ def run_case(model, case: Case, background: np.ndarray) -> Outcome:
     if case.expect:
         want = set(case.expect.split("|"))
         ok = float(np.mean([bool(want & set(f)) for f in flags])) if flags else math.nan
-    out = Outcome(raw, flags, nonfinite, ok)
+    out = CaseReadings(raw, flags, nonfinite, ok)
     if case.sweep:
         steps = []
         n_ind = 3
@@ -146,7 +148,7 @@ def run(args, argv) -> None:
 
     cases = build_cases(args.quick)
     bg = frame_pool().background
-    results: dict[tuple[str, str, bool], dict[str, Outcome]] = {}
+    results: dict[tuple[str, str, bool], dict[str, CaseReadings]] = {}
     for cfg, prec, path, trained in models_to_test(args.quick):
         model = OnnxForceModel(path, threads=1)
         results[(cfg, prec, trained)] = {c.name: run_case(model, c, bg) for c in cases}

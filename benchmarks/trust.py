@@ -1,9 +1,9 @@
-"""Trust suite: no plausible force from a frame that cannot be judged (issue 14).
+"""Trust suite (trust.md): no plausible force from a frame that cannot be judged.
 
 Every frame goes through the runtime users run (ForceRuntime + ContactGate + the default
 bundle, whose manifest carries ``data_stats``; when the embedded bundle has none yet, the
 statistics are computed here from synthetic training-like frames with
-:func:`default_data_stats` and attached to the loaded manifest in memory).
+:func:`benchmarks.reference.default_data_stats` and attached to the loaded manifest in memory).
 
 Per category it counts:
 
@@ -23,8 +23,6 @@ from __future__ import annotations
 
 import collections
 import math
-import os
-import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -32,80 +30,15 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from .latency import ListSource
-from .machine import command_line, describe_machine, header
-from .stats import markdown_table
+from .harness.data import aurova, digit_backgrounds, wedge_grasps
+from .harness.machine import command_line, describe_machine, header
+from .harness.paths import shared_data
+from .harness.sources import ListSource
+from .harness.stats import markdown_table
+from .reference import attach_data_stats, default_data_stats
 
-REPO = Path(__file__).resolve().parents[1]
-DATA = Path(os.environ.get("TACTILE_FORCE_SHARED_DATA", REPO.parent / "shared" / "data"))
 JUDGING = ("no_contact", "invalid_input", "background_mismatch", "out_of_distribution", "saturated")
 ALARMS = ("invalid_input", "background_mismatch", "out_of_distribution")
-#: Corners of the GelSight Wedge gel in its raw 640x480 view (wedge_config/config_100.csv order).
-WEDGE_WARP = (400, 300)
-WEDGE_CROP = 25
-
-
-# -- data ------------------------------------------------------------------------------------
-def _img(*parts: str) -> np.ndarray:
-    p = DATA.joinpath(*parts)
-    img = cv2.imread(str(p))
-    if img is None:
-        raise FileNotFoundError(f"{p}: missing (the trust suite needs ../shared/data)")
-    return img
-
-
-def digit_backgrounds() -> dict[str, np.ndarray]:
-    """The four real DIGIT units' no-contact frames (320x240 BGR), by file stem."""
-    folder = DATA / "digit_backgrounds"
-    return {p.stem: _img("digit_backgrounds", p.name) for p in sorted(folder.iterdir())
-            if p.suffix in (".png", ".jpg")}
-
-
-def aurova(heldout: bool = False) -> list[tuple[np.ndarray, float]]:
-    """(frame, force N) of the shared AUROVA grasp (or its held-out half), paired by number."""
-    from tactile_force.edge.data.dataset import AuthorsDataset  # the package's one labelled-data reader
-
-    return [(s.frame, float(s.force_n)) for s in
-            AuthorsDataset(DATA / ("aurova_digit_grasp_heldout" if heldout else "aurova_digit_grasp"))]
-
-
-def wedge_frames(video: Path) -> list[np.ndarray]:
-    """Frames of one GelSight Wedge grasp video (``ROOT/example_data/DATE/NAME.avi``) as a user
-    would feed them to a DIGIT bundle: the raw view warped with the 4 gel corners of
-    ``ROOT/wedge_config/config_100.csv`` to 400x300, 25 px cropped per edge, turned portrait
-    and resized to 320x240 (INTER_AREA), HxWx3 uint8 BGR; frame 0 has no contact."""
-    root = video.parents[2]
-    corners = {}
-    for line in (root / "wedge_config" / "config_100.csv").read_text().splitlines()[1:]:
-        name, x, y = line.split(",")
-        corners[name.strip()] = (float(x), float(y))
-    src = np.array([corners[k] for k in ("topleft", "topright", "bottomleft", "bottomright")], np.float32)
-    w, h = WEDGE_WARP
-    dst = np.array([[0, 0], [w, 0], [0, h], [w, h]], np.float32)
-    warp = cv2.getPerspectiveTransform(src, dst)
-    cap = cv2.VideoCapture(str(video))
-    frames = []
-    while True:
-        ok, f = cap.read()
-        if not ok:
-            break
-        g = cv2.warpPerspective(f, warp, (w, h))[WEDGE_CROP:-WEDGE_CROP, WEDGE_CROP:-WEDGE_CROP]
-        frames.append(cv2.resize(cv2.rotate(g, cv2.ROTATE_90_CLOCKWISE), (240, 320), interpolation=cv2.INTER_AREA))
-    cap.release()
-    return frames
-
-
-def wedge_grasps(every: int = 1) -> list[tuple[str, list[np.ndarray], list[float]]]:
-    """Every GelSight Wedge grasp (:func:`wedge_frames`): (name, frames, forces N)."""
-    out = []
-    for video in sorted((DATA / "gelsight_wedge_grasps" / "example_data").glob("*/*.avi")):
-        forces = [float(v) for v in video.with_name(video.stem + "_forces.csv").read_text().split()]
-        frames = wedge_frames(video)
-        n = min(len(frames), len(forces))
-        out.append((f"{video.parent.name}/{video.stem}", frames[:n:every], forces[:n:every]))
-    return out
-
-
 # -- adversarial frames -----------------------------------------------------------------------
 def _gain(img: np.ndarray, g: float) -> np.ndarray:
     return np.clip(img.astype(np.float32) * g, 0, 255).astype(np.uint8)
@@ -208,48 +141,6 @@ class Tally:
             self.saturated_below_15 += 1
 
 
-def default_data_stats(n: int = 600, seed: int = 0):
-    """data_stats for the embedded default bundle: ``n`` frames drawn like its training set
-    (benchmarks.reference: the virtual DIGIT, the paper's 18 indenters, 6 % above 15 N, LED
-    spread 3 %) seen through the gate against the shipped no-contact background. Cached in
-    benchmarks/cache/trust_data_stats-nN-seedS.json."""
-    from tactile_force.edge import AuthorsDataset
-    from tactile_force.edge.bundle.data_stats import DataStats
-    from tactile_force.edge.fitting.data_stats import compute_data_stats
-    from tactile_force.edge.synthetic import DatasetOptions, ForceDistribution, generate_dataset
-    from tactile_force.edge.typed_json import from_json, to_json
-
-    from .reference import ABOVE_RANGE_SHARE, CACHE
-
-    cache = CACHE / f"trust_data_stats-n{n}-seed{seed}.json"
-    if cache.is_file():
-        import json
-
-        return from_json(DataStats, json.loads(cache.read_text()), "data_stats")
-    with tempfile.TemporaryDirectory() as tmp:
-        generate_dataset(Path(tmp) / "ds", DatasetOptions(n=n, seed=seed, progress=False,
-                                                          forces=ForceDistribution(above_fraction=ABOVE_RANGE_SHARE)))
-        ds = AuthorsDataset(Path(tmp) / "ds")
-        frames = [ds[i].frame for i in range(len(ds))]
-    bg = cv2.imread(str(REPO / "edge" / "assets" / "digit_background.png"))
-    stats = compute_data_stats(frames, bg, source=f"{n} synthetic frames drawn like the default bundle's training set "
-                                                  f"(virtual DIGIT, paper indenters, seed {seed})")
-    cache.parent.mkdir(parents=True, exist_ok=True)
-    import json
-
-    cache.write_text(json.dumps(to_json(stats), indent=1))
-    return stats
-
-
-def attach_data_stats(bundle_dir: Path, stats) -> None:
-    """Store ``stats`` as the manifest's data_stats of the bundle folder (rewritten atomically)."""
-    from tactile_force.edge.bundle.store import load_bundle, write_bundle
-
-    b = load_bundle(bundle_dir)
-    b.manifest.data_stats = stats
-    write_bundle(bundle_dir, b.onnx_path.read_bytes(), b.manifest, overwrite=True)
-
-
 def load_default_model(stats_n: int):
     """The default bundle's model; data_stats attached in memory when its manifest has none."""
     from tactile_force.edge import OnnxForceModel
@@ -259,7 +150,8 @@ def load_default_model(stats_n: int):
     note = "from the bundle's manifest"
     if getattr(model.bundle.manifest, "data_stats", None) is None:
         model.bundle.manifest.data_stats = default_data_stats(stats_n)
-        note = ("computed by benchmarks.trust.default_data_stats (the embedded manifest has none yet) and attached "
+        note = ("computed by benchmarks.reference.default_data_stats (the embedded manifest has none yet) and "
+                "attached "
                 "in memory")
     return model, note
 
@@ -341,7 +233,7 @@ def run_suite(quick: bool = False) -> tuple[list[Tally], dict]:
     tallies.append(t)
 
     # GelSight Mini presses: the gate alone (480x640 frames; the DIGIT bundle does not take them).
-    z = np.load(DATA / "gelsight_mini_ball_presses.npz")
+    z = np.load(shared_data("gelsight_mini_ball_presses.npz"))
     f0, imgs, centres, radii = z["f0"], z["imgs"], z["touch_center"], z["touch_radius"]
     yy, xx = np.mgrid[: f0.shape[0], : f0.shape[1]]
     ious, t = [], Tally("GelSight Mini ball presses (gate only, gelsight_mini preset)", "contact")
@@ -493,4 +385,4 @@ def run(args, argv) -> int:
     return 0 if ok else 1
 
 
-__all__ = ["adversarial", "attach_data_stats", "default_data_stats", "run", "run_suite", "wedge_grasps"]
+__all__ = ["adversarial", "run", "run_suite"]

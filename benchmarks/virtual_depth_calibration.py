@@ -19,8 +19,8 @@ import numpy as np
 from tactile_force.edge.cli import main as cli_main
 from tactile_force.edge.synthetic import VirtualDigit, VirtualDigitOptions
 
-REPO = Path(__file__).resolve().parents[1]
-OUT = REPO / "edge" / "assets" / "virtual_digit_depth.npz"
+from .harness.frames import VIRTUAL_DEPTH_MAPPING
+
 BALL_MM = 2.35
 
 
@@ -45,7 +45,8 @@ def main() -> int:
         folder = render_presses(Path(tmp))
         px_per_mm = VirtualDigitOptions().px_per_mm
         return cli_main(["calibrate-depth", str(folder / "presses"), "--background", str(folder / "background.png"),
-                         "--ball-radius-mm", str(BALL_MM), "--px-per-mm", str(px_per_mm), "-o", str(OUT)])
+                         "--ball-radius-mm", str(BALL_MM), "--px-per-mm", str(px_per_mm),
+                         "-o", str(VIRTUAL_DEPTH_MAPPING)])
 
 
 if __name__ == "__main__":

@@ -73,7 +73,7 @@ def main(args: argparse.Namespace) -> int:
     o = StudyOptions(budget_ms=args.budget_ms, threads=args.threads, frames=args.frames, quick=args.quick,
                      max_configs=args.max_configs, sensitivity_nodes=args.sensitivity_nodes,
                      max_calibration_frames=args.calib_frames, keep_bundles="all" if args.keep_all else "pareto")
-    from tactile_force.benchmarks.stats import MIN_P99_READINGS
+    from tactile_force.benchmarks.harness.stats import MIN_P99_READINGS
     from tactile_force.edge.report.logs import quiet_loggers
 
     if args.frames < MIN_P99_READINGS:

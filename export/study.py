@@ -324,7 +324,7 @@ def run_study(fp32: Path, data: Path, out: Path, options: StudyOptions | None = 
         Also written to ``out/study.json``.
     """
     from tactile_force.benchmarks.bench import contact_frames, replay_readings
-    from tactile_force.benchmarks.machine import describe_machine
+    from tactile_force.benchmarks.harness.machine import describe_machine
     from tactile_force.edge.bundle.store import load_bundle
     from tactile_force.edge.report.plots import ParetoPoint, pareto_front
     from tactile_force.edge.report.progress import progress
@@ -435,7 +435,7 @@ def run_study(fp32: Path, data: Path, out: Path, options: StudyOptions | None = 
                        c.error.re_mean if c.error is not None else None) for c in results]
     for i in pareto_front(pts):
         results[i].pareto = True
-    from tactile_force.benchmarks.stats import too_few_for_p99
+    from tactile_force.benchmarks.harness.stats import too_few_for_p99
 
     few = too_few_for_p99(min((c.latency_ms.n for c in results), default=0))
     for c in results:

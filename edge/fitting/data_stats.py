@@ -10,7 +10,7 @@ from collections.abc import Iterable
 import numpy as np
 
 from ..bundle.data_stats import DataStats
-from ..gate.contact_gate import ContactGate, GateOptions
+from ..gate import ContactGate, GateOptions
 
 _log = logging.getLogger(__name__)
 

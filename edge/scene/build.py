@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import AcceleratorUnavailableError, SceneError, SourceError
-from ..gate.contact_gate import ContactGate, GateOptions
+from ..gate import ContactGate, GateOptions
 from .kinds import open_source
 from .model import Clock, Scene
 

@@ -22,8 +22,8 @@ from tactile_force.benchmarks.bench import (
     read_report,
     shipped_bundles,
 )
-from tactile_force.benchmarks.check import Verdict, judge
-from tactile_force.benchmarks.machine import MachineState
+from tactile_force.benchmarks.harness.budget import BudgetVerdict, judge
+from tactile_force.benchmarks.harness.machine import MachineState
 from tactile_force.edge.cli import main
 from tactile_force.edge.scene import default_bundle_path
 
@@ -128,8 +128,9 @@ def test_bench_data_gives_the_same_error_as_run(tmp_path, capsys, synth_dir):
 def test_bench_needs_no_torch_onnx_or_matplotlib(tmp_path):
     code = ("import sys, json\n"
             "for m in ('torch', 'onnx', 'matplotlib'): sys.modules[m] = None  # importing one would fail\n"
-            "import tactile_force.benchmarks.bench, tactile_force.benchmarks.check, tactile_force.benchmarks.latency\n"
-            "import tactile_force.benchmarks.machine, tactile_force.edge.cli.bench, tactile_force.edge.report.plots\n"
+            "import tactile_force.benchmarks.bench, tactile_force.benchmarks.harness.budget\n"
+            "import tactile_force.benchmarks.harness.latency, tactile_force.benchmarks.harness.machine\n"
+            "import tactile_force.edge.cli.bench, tactile_force.edge.report.plots\n"
             "from tactile_force.edge.cli import main\n"
             f"rc = main(['bench', '--frames', '10', '--repeats', '1', '--out', {str(tmp_path / 'o')!r}])\n"
             "print(json.dumps([rc, sorted(m for m in sys.modules if m.split('.')[0] in "
@@ -172,10 +173,10 @@ class _Window:
 
 
 @pytest.mark.parametrize("p99s, busy, verdict, n", [
-    ([0.5], [False], Verdict.PASS, 1),
-    ([2.0], [False], Verdict.OVER_BUDGET, 1),
-    ([2.0, 3.0, 2.5], [True, True, True], Verdict.MACHINE_BUSY, 3),
-    ([2.0, 0.8], [True, True], Verdict.PASS, 2),
+    ([0.5], [False], BudgetVerdict.PASS, 1),
+    ([2.0], [False], BudgetVerdict.OVER_BUDGET, 1),
+    ([2.0, 3.0, 2.5], [True, True, True], BudgetVerdict.MACHINE_BUSY, 3),
+    ([2.0, 0.8], [True, True], BudgetVerdict.PASS, 2),
 ])
 def test_judge_repeats_only_after_a_busy_attempt_over_budget(p99s, busy, verdict, n):
     left = list(p99s)

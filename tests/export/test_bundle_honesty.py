@@ -59,7 +59,7 @@ def _compress(setup, out, **kw):
 def _wedge_contact_frames() -> tuple[list[tuple[np.ndarray, list[np.ndarray], list[float]]], int]:
     """Per Wedge grasp: (its no-contact frame 0, its frames at 11-14 N, their forces)."""
     shared_data("gelsight_wedge_grasps")
-    from benchmarks.trust import wedge_grasps
+    from benchmarks.harness.data import wedge_grasps
 
     out, n = [], 0
     for _, frames, forces in wedge_grasps():

@@ -1,6 +1,6 @@
 """``tactile-force ARGS`` in a subprocess (for tests that send it signals or guard against a
 hang). With TF_PACKAGE_ROOT set, the package is imported from there (a check of an older
-commit, as benchmarks/robustness_baseline.py does)."""
+commit's package)."""
 
 import os
 import sys

@@ -270,7 +270,7 @@ def test_virtual_grasps_have_at_most_one_percent_false_alarms(model):
 
 # -- another sensor type: GelSight Wedge frames on the DIGIT bundle -------------------------------
 def _wedge(video) -> list[np.ndarray]:
-    from benchmarks.trust import wedge_frames
+    from benchmarks.harness.data import wedge_frames
 
     return wedge_frames(video)
 

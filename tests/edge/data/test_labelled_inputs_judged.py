@@ -17,7 +17,7 @@ from tactile_force.edge.data.dataset import AuthorsDataset
 from tactile_force.edge.errors import DatasetError, SourceError
 from tactile_force.edge.sources import ReplayFolderSource
 
-from benchmarks.robustness import make_dataset
+from benchmarks.harness.cases import make_dataset
 
 #: image (as cv2.imwrite writes it) -> the words the refusal holds
 BAD_FRAMES = {

@@ -17,7 +17,7 @@ import cv2
 import numpy as np
 import pytest
 from tactile_force.edge import FrameError
-from tactile_force.edge.gate.contact_gate import ContactGate, GateOptions
+from tactile_force.edge.gate import ContactGate, GateOptions
 
 from tests.conftest import shared_data
 

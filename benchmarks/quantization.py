@@ -1,4 +1,4 @@
-"""docs/benchmarks/quantization.md: ``tactile-force study`` (:func:`tactile_force.export.study.run_study`,
+"""The quantization page (quantization.md): ``tactile-force study`` (:func:`tactile_force.export.study.run_study`,
 the installed verb's code) on the reference compact RGBmod (rgbmod-w0.25-s4: the trained one
 when the reference recipe made it, else random weights), calibrated on the synthetic train
 split and evaluated on the synthetic test split, through the runtime; then evaluating a
@@ -16,13 +16,18 @@ from pathlib import Path
 
 import numpy as np
 
-from .bundles import CACHE, DEFAULT_CONFIG, TRAINED_MODELS, ModelConfig, latency_bundle, parse_config, trained_models
-from .evaluate import predict_all, synthetic_test
-from .latency import LatencyCase, measure
-from .machine import command_line
-from .stats import markdown_table
+from .bundles import DEFAULT_CONFIG, latency_bundle, trained_models, trained_models_dir
+from .harness.data import predict_all
+from .harness.latency import LatencyCase, ModelConfig, measure, parse_config
+from .harness.machine import command_line
+from .harness.paths import cache_dir, source_commit
+from .harness.stats import markdown_table
+from .reference import synthetic_test
 
-STUDY = CACHE / "quant_study"
+
+def study_dir() -> Path:
+    """Where the study's bundles are kept (by source model)."""
+    return cache_dir() / "quant_study"
 
 
 def _errors(model, test, fp32_pred: np.ndarray | None) -> dict:
@@ -47,7 +52,7 @@ def split_folder(part: str, limit: int | None = None) -> Path:
     root = reference.ensure_dataset()
     ids = sorted(split_ids(AuthorsDataset(root).meta, paper_split(reference.SPLIT))[part], key=int)
     ids = ids[:limit] if limit is not None else ids
-    out = CACHE / f"{root.name}-{reference.SPLIT}-{part}-{len(ids)}"
+    out = cache_dir() / f"{root.name}-{reference.SPLIT}-{part}-{len(ids)}"
     if (out / "DONE").is_file():
         return out
     for sub in ("images", "forces"):
@@ -66,7 +71,7 @@ def virtual_background() -> Path:
     import cv2
     from tactile_force.edge.synthetic import VirtualDigit, VirtualDigitOptions
 
-    path = CACHE / "virtual_digit_background.png"
+    path = cache_dir() / "virtual_digit_background.png"
     if not path.is_file():
         path.parent.mkdir(parents=True, exist_ok=True)
         frame = VirtualDigit(VirtualDigitOptions()).render(None, 0.0, led_gain=(1.0, 1.0, 1.0)).frame
@@ -78,14 +83,14 @@ def run(args, argv) -> None:
     from tactile_force.export.study import StudyOptions, markdown, run_study
 
     cfg = parse_config(DEFAULT_CONFIG)
-    trained_dir = TRAINED_MODELS / DEFAULT_CONFIG / "fp32"
+    trained_dir = trained_models_dir() / DEFAULT_CONFIG / "fp32"
     trained = (trained_dir / "model.json").is_file()
     fp32 = trained_dir if trained else latency_bundle(cfg, "fp32")
     test_dir = split_folder("test", 60 if args.quick else None)
     calib_dir = split_folder("train", 200)
     # Study bundles are keyed by the fp32 source's hash: retraining never reuses stale ones.
     src = json.loads((Path(fp32) / "model.json").read_text())["sha256"][:10]
-    out = STUDY / f"{cfg.name}-{src}"
+    out = study_dir() / f"{cfg.name}-{src}"
     report = run_study(fp32, test_dir, out, StudyOptions(quick=args.quick, frames=100 if args.quick else 1000,
                                                          show_progress=True),
                        calibration=calib_dir, background=virtual_background(), command=command_line(argv),
@@ -97,7 +102,9 @@ def run(args, argv) -> None:
     if args.quick:
         test.rgb, test.force = test.rgb[:40], test.force[:40]
     scale_rows, scale_note = input_scale_study(test, args.quick)
-    text = markdown(report, "Quantization study").rstrip() + "\n\n" + "\n".join([
+    # the study's report.md with the commit that measured, after its command line
+    head, sep, rest = markdown(report, "Quantization study").partition(f"Command: `{report.command}`\n")
+    text = (head + sep + f"\nCommit: {source_commit()}\n" + rest).rstrip() + "\n\n" + "\n".join([
         f"Model: {weights}. The study's bundles: `{out}`. The same study runs on your model, data and host "
         "with `tactile-force study` ([docs/bench.md](../bench.md)).", "",
         "## Evaluating at a smaller input scale than trained", "", scale_note, "",
@@ -122,7 +129,7 @@ def input_scale_study(test, quick: bool) -> tuple[list[list[object]], str]:
         lat = measure(LatencyCase(c, "fp32", frames=100, bundle=tm.bundles["fp32"])).stages["inference"].p50
         rows.append([c.name, f"1/{c.k}", f"1/{c.k} (native)", native["re"], native["mae"], lat])
         src = json.loads((tm.bundles["fp32"] / "model.json").read_text())["sha256"][:10]
-        dest = STUDY / f"{c.name}-{src}-at-s{2 * c.k}"
+        dest = study_dir() / f"{c.name}-{src}-at-s{2 * c.k}"
         if not (dest / "model.json").is_file():
             export_bundle(tm.root / "model.pth", dest, ExportOptions(input_scale=1.0 / (2 * c.k), overwrite=True,
                                                                       name=dest.name, parity_tol_n=1e-3))

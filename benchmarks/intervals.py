@@ -1,4 +1,4 @@
-"""docs/benchmarks/intervals.md: does every reading's error bar hold what it states? (issue 21)
+"""The intervals page (intervals.md): does every reading's error bar hold what it states?
 
     python -m benchmarks intervals --out docs/benchmarks
 
@@ -21,14 +21,13 @@ from pathlib import Path
 
 import numpy as np
 
-from .interval_fit import CAL_GRASPS, MODELS, REPORT_SEED, GraspReadings, grasp_readings
+from .harness.paths import cache_dir, shared_data
+from .interval_fit import CAL_GRASPS, REPORT_SEED, GraspReadings, grasp_readings
 
-REPO = Path(__file__).resolve().parents[1]
-SHARED = REPO.parent / "shared" / "data"
 #: True-force bins of the tables (N); the last holds saturated grasps.
 TRUE_BINS = (0.0, 1.0, 2.0, 4.0, 7.0, 11.0, 15.0, math.inf)
 REPORT_GRASPS = 60
-GOALS = ("Goals (issue 21): synthetic coverage within 0.85-0.97 for a stated 0.90 and median width <= 0.45 x the "
+GOALS = ("Goals: synthetic coverage within 0.85-0.97 for a stated 0.90 and median width <= 0.45 x the "
          "true force; held-out real frames after calibrate-force: >= 8 of 11 inside, median width <= 0.45 x the true "
          "force; the interval step under 2 us per reading.")
 
@@ -78,16 +77,14 @@ def table_rows(truth: np.ndarray, low: np.ndarray, high: np.ndarray, known: np.n
 
 
 def cached_grasp_readings(bundle, seed: int, n_grasps: int, split: str) -> GraspReadings:
-    """:func:`grasp_readings`, kept in benchmarks/cache/ under the bundle's exact model.json
+    """:func:`grasp_readings`, kept in the cache dir under the bundle's exact model.json
     (model sha256 and interval record) and the run's parameters, so a rerun of the page
     after an unrelated failure does not re-render the grasps."""
     import hashlib
     import json
 
-    from .reference import CACHE
-
     key = hashlib.sha256((bundle.manifest.to_json() + json.dumps([seed, n_grasps, split])).encode()).hexdigest()[:16]
-    path = CACHE / f"interval_readings-{key}.npz"
+    path = cache_dir() / f"interval_readings-{key}.npz"
     if path.is_file():
         z = np.load(path)
         return GraspReadings(z["force"], z["truth"], z["flags"], z["low"], z["high"], [str(x) for x in z["state"]],
@@ -101,10 +98,11 @@ def cached_grasp_readings(bundle, seed: int, n_grasps: int, split: str) -> Grasp
     return g
 
 
-def synthetic_section(n_grasps: int, bundle_path: Path = MODELS / "default", split: str = "S1") -> tuple[str, dict]:
+def synthetic_section(n_grasps: int, bundle_path: Path | None = None, split: str = "S1") -> tuple[str, dict]:
     from tactile_force.edge.bundle.store import load_bundle
+    from tactile_force.edge.scene import default_bundle_path
 
-    b = load_bundle(bundle_path)
+    b = load_bundle(bundle_path or default_bundle_path())
     iv = b.manifest.interval
     if iv is None:
         return ("The default bundle has no interval: run `python -m benchmarks.interval_fit` first.\n", {})
@@ -150,12 +148,13 @@ def real_section() -> tuple[str, dict]:
     from tactile_force.edge.fitting.calibrate import calibrate_bundle, raw_estimates, read_labelled
     from tactile_force.edge.model.onnx_model import OnnxForceModel
     from tactile_force.edge.reading import MAX_VALID_FORCE_N
+    from tactile_force.edge.scene import default_bundle_path
 
-    fit_dir, held_dir = SHARED / "aurova_digit_grasp", SHARED / "aurova_digit_grasp_heldout"
+    fit_dir, held_dir = shared_data("aurova_digit_grasp"), shared_data("aurova_digit_grasp_heldout")
     if not (fit_dir.is_dir() and held_dir.is_dir()):
         return f"Real frames: skipped ({fit_dir} or {held_dir} absent).\n", {}
     with tempfile.TemporaryDirectory(prefix="tactile-force-intervals-") as tmp:
-        bundle, _cal = calibrate_bundle(MODELS / "default", fit_dir, Path(tmp) / "calibrated")
+        bundle, _cal = calibrate_bundle(default_bundle_path(), fit_dir, Path(tmp) / "calibrated")
         b = load_bundle(bundle.path)
         iv = b.manifest.interval
         assert iv is not None
@@ -254,7 +253,8 @@ def cost_section(repeats: int = 7, calls: int = 200_000) -> tuple[str, dict]:
 
 
 def intervals_page(args, argv) -> str:
-    from .machine import command_line, describe_machine, header
+    """The page's Markdown (``args.quick``: 8 grasps, fewer calls: a smoke run)."""
+    from .harness.machine import command_line, describe_machine, header
 
     n = 8 if args.quick else REPORT_GRASPS
     m = describe_machine()

@@ -1,4 +1,4 @@
-"""Issue 19's cases for the robustness catalogue (benchmarks/robustness.py): inputs that a
+"""Cases for the robustness catalogue (benchmarks/robustness.py): inputs that a
 writing verb must never destroy, labels and presses checked where they enter, calibrate-depth
 radii and scales, MCAP logs stopped by SIGTERM / SIGINT / kill -9, and the smaller items.
 
@@ -24,8 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .robustness import (
-    REPO,
+from .harness.cases import (
     Outcome,
     Verdict,
     accepted,
@@ -33,13 +32,16 @@ from .robustness import (
     default_bundle_dir,
     make_dataset,
     refusal,
+    run_cli,
     with_timeout,
     worst,
     write_frame_png,
 )
+from .harness.paths import require_repo, shared_data
 
+REPO = require_repo("the robustness suite (its workers are in tests/robustness)")
 TF_CLI = REPO / "tests" / "robustness" / "tf_cli.py"
-SHARED = Path(os.environ.get("TACTILE_FORCE_SHARED_DATA", REPO.parent / "shared" / "data"))
+SHARED = shared_data()
 HANG_S = 20.0
 
 
@@ -97,8 +99,6 @@ def tiny_checkpoint(dest: Path) -> Path:
 def inputs_cases(folder: Path) -> list[tuple[str, Callable[[], Verdict]]]:
     """(what, probe) for every writing verb pointed at its own inputs. Each destructive case
     gets fresh copies of its inputs (a case that destroyed them must not change the next)."""
-    from .robustness import run_cli
-
     ckpt0 = tiny_checkpoint(folder / "ckpt0" / "ckpt.pth")
     fp32_0 = folder / "fp32_0"
     rc, _, err = run_cli(["export", str(ckpt0), "--out", str(fp32_0), "--tolerance", "1e-3"])

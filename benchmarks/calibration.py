@@ -1,6 +1,7 @@
-"""The default bundle before and after ``tactile-force calibrate-force`` on real DIGIT frames.
+"""The calibration page (calibration.md): the default bundle before and after
+``tactile-force calibrate-force`` on real DIGIT frames.
 
-    python -m benchmarks.calibration_study      # writes docs/benchmarks/calibration.md
+    python -m benchmarks.calibration      # writes docs/benchmarks/calibration.md (from a clone)
 
 Fit: the 11 shared AUROVA frames (../shared/data/aurova_digit_grasp), leave-one-out on them.
 Report only: the 11 held-out frames of the same grasp (aurova_digit_grasp_heldout), never
@@ -15,12 +16,7 @@ import time
 
 import numpy as np
 
-from .frames import CACHE, REPO
-
-OUT = REPO / "docs" / "benchmarks" / "calibration.md"
-SHARED = REPO.parent / "shared" / "data"
-FIT = SHARED / "aurova_digit_grasp"
-HELDOUT = SHARED / "aurova_digit_grasp_heldout"
+from .harness.paths import cache_dir, require_repo, shared_data
 
 
 def _p(model, rgb: np.ndarray) -> np.ndarray:
@@ -45,10 +41,11 @@ def study() -> tuple[list[list], dict]:
 
     rows: list[list] = []
     info: dict = {}
+    fit, heldout = shared_data("aurova_digit_grasp"), shared_data("aurova_digit_grasp_heldout")
     for method in ("isotonic", "linear"):
-        dest = CACHE / "calibrated_default" / method
-        bundle, cal = calibrate_bundle(default_bundle_path(), FIT, dest, method, overwrite=True)
-        held = read_labelled(HELDOUT)
+        dest = cache_dir() / "calibrated_default" / method
+        bundle, cal = calibrate_bundle(default_bundle_path(), fit, dest, method, overwrite=True)
+        held = read_labelled(heldout)
         raw = OnnxForceModel(bundle, calibrate=False)
         calibrated = OnnxForceModel(bundle)
         before = error_stats(_p(raw, held.rgb), held.force)
@@ -66,30 +63,32 @@ def study() -> tuple[list[list], dict]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from .machine import describe_machine, header
-    from .stats import markdown_table
+    from .harness.machine import describe_machine, header
+    from .harness.stats import markdown_table
 
-    if not (FIT / "images").is_dir() or not (HELDOUT / "images").is_dir():
-        print(f"needs {FIT} and {HELDOUT}", file=sys.stderr)
+    out = require_repo("writing docs/benchmarks/calibration.md") / "docs" / "benchmarks" / "calibration.md"
+    fit, heldout = shared_data("aurova_digit_grasp"), shared_data("aurova_digit_grasp_heldout")
+    if not (fit / "images").is_dir() or not (heldout / "images").is_dir():
+        print(f"needs {fit} and {heldout}", file=sys.stderr)
         return 2
     rows, info = study()
     (r50, r99), (c50, c99) = info["latency"]["raw"], info["latency"]["calibrated"]
     note = ("Default bundle (edge/models/default, trained on synthetic frames only). `calibrate-force` fitted on the "
-            f"11 AUROVA frames ({FIT.name}, 1.08-11.88 N, Spearman {info['spearman']:.3f}); leave-one-out (LOO) on "
-            f"those 11; held-out: the 11 other frames of the same grasp ({HELDOUT.name}, 1.50-11.93 N), report only. "
+            f"11 AUROVA frames ({fit.name}, 1.08-11.88 N, Spearman {info['spearman']:.3f}); leave-one-out (LOO) on "
+            f"those 11; held-out: the 11 other frames of the same grasp ({heldout.name}, 1.50-11.93 N), report only. "
             "Both sets come from ONE grasp of ONE indenter on ONE sensor, interleaved in time: the held-out figures "
             "say the map generalises to other frames of that grasp, not to other objects or sensors.")
     text = header("Force calibration of the default bundle on real DIGIT frames",
-                  "python -m benchmarks.calibration_study", describe_machine(), note)
+                  "python -m benchmarks.calibration", describe_machine(), note)
     text += markdown_table(["method", "LOO RE before", "LOO MAE before (N)", "LOO RE after", "LOO MAE after (N)",
                             "held-out RE before", "held-out MAE before (N)", "held-out RE after",
                             "held-out MAE after (N)"], rows) + "\n\n"
     text += (f"Run-time cost (isotonic, {info['knots']} knots), batch-2 predict, one thread: p50 {r50:.3f} / "
              f"p99 {r99:.3f} ms raw, p50 {c50:.3f} / p99 {c99:.3f} ms calibrated (2000 calls each; the map itself is "
              "a bisect per value, under 1 us for two values).\n")
-    OUT.write_text(text)
+    out.write_text(text)
     print(text)
-    print(f"wrote {OUT}")
+    print(f"wrote {out}")
     return 0
 
 

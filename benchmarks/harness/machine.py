@@ -1,4 +1,8 @@
-"""Who measured what, where: the machine description and command line every table states."""
+"""Who measured what, where: the machine, its load while measuring, the command and the commit
+every page states (:func:`header`); :class:`CpuWindow` watches the machine over a measurement.
+
+Values that cannot be read on this host are None (never NaN), so the records go into
+``report.json`` as they are (:mod:`tactile_force.edge.typed_json`)."""
 
 from __future__ import annotations
 
@@ -13,18 +17,20 @@ from dataclasses import dataclass
 
 @dataclass(frozen=True)
 class Machine:
-    """CPU model, logical cores, RAM (GiB), OS and the versions of the runtimes measured."""
+    """The host: CPU model, logical cores, RAM (GiB; None when unknown), OS, Python and the
+    versions of the runtimes measured, and its background load when the measurement started."""
 
     cpu: str
     cores: int
-    ram_gib: float
+    ram_gib: float | None
     os: str
     python: str
     versions: str
     background_load: str
 
     def line(self) -> str:
-        return (f"{self.cpu}, {self.cores} logical cores, {self.ram_gib:.0f} GiB RAM, {self.os}, "
+        ram = "?" if self.ram_gib is None else f"{self.ram_gib:.0f}"
+        return (f"{self.cpu}, {self.cores} logical cores, {ram} GiB RAM, {self.os}, "
                 f"Python {self.python}; {self.versions}")
 
 
@@ -39,7 +45,7 @@ def _cpu_model() -> str:
     return platform.processor() or platform.machine()
 
 
-def _ram_gib() -> float:
+def _ram_gib() -> float | None:
     try:
         with open("/proc/meminfo") as f:
             for line in f:
@@ -47,7 +53,7 @@ def _ram_gib() -> float:
                     return int(line.split()[1]) / 2**20
     except OSError:
         pass
-    return float("nan")
+    return None
 
 
 def _versions() -> str:
@@ -81,10 +87,12 @@ def background_load() -> str:
         train = "reference training RUNNING (timings pessimistic)" if pids else "no reference training running"
     except (OSError, subprocess.SubprocessError, ValueError):
         train = "training status unknown"
-    return f"{la}; CPU clock {cpu_mhz():.0f} MHz; {train}"
+    mhz = cpu_mhz()
+    return f"{la}; CPU clock {'unknown' if mhz is None else f'{mhz:.0f} MHz'}; {train}"
 
 
 def describe_machine() -> Machine:
+    """This host, now."""
     return Machine(cpu=_cpu_model(), cores=os.cpu_count() or 1, ram_gib=_ram_gib(),
                    os=f"{platform.system()} {platform.release()}", python=platform.python_version(),
                    versions=_versions(), background_load=background_load())
@@ -97,9 +105,13 @@ def command_line(argv: list[str] | None = None) -> str:
 
 
 def header(title: str, command: str, machine: Machine, notes: str = "") -> str:
-    """Markdown header every docs/benchmarks page starts with."""
-    out = [f"# {title}", "", f"Command: `{command}`", "", f"Machine: {machine.line()}.",
-           f"While measuring: {machine.background_load}.", ""]
+    """Markdown header every docs/benchmarks page starts with: title, the command, the commit
+    of the code that measured (:func:`benchmarks.harness.paths.source_commit`), the machine
+    and its load, then ``notes``."""
+    from .paths import source_commit
+
+    out = [f"# {title}", "", f"Command: `{command}`", "", f"Commit: {source_commit()}", "",
+           f"Machine: {machine.line()}.", f"While measuring: {machine.background_load}.", ""]
     if notes:
         out += [notes, ""]
     return "\n".join(out) + "\n"
@@ -113,14 +125,14 @@ def header(title: str, command: str, machine: Machine, notes: str = "") -> str:
 BUSY_SHARE = 0.05
 
 
-def cpu_mhz() -> float:
-    """Mean current clock of the cores (MHz) from /proc/cpuinfo; nan when unknown."""
+def cpu_mhz() -> float | None:
+    """Mean current clock of the cores (MHz) from /proc/cpuinfo; None when unknown."""
     try:
         with open("/proc/cpuinfo") as f:
             mhz = [float(line.split(":", 1)[1]) for line in f if line.startswith("cpu MHz")]
     except (OSError, ValueError):
-        return float("nan")
-    return sum(mhz) / len(mhz) if mhz else float("nan")
+        return None
+    return sum(mhz) / len(mhz) if mhz else None
 
 
 def _cpu_jiffies() -> tuple[int, int] | None:
@@ -142,22 +154,26 @@ def _own_cpu_s() -> float:
 @dataclass(frozen=True)
 class MachineState:
     """What the machine did while something was measured: load average before / after
-    (1 min), mean CPU clock (MHz) before / after, and the share of all cores' time that
-    OTHER processes used meanwhile (busy when it exceeds ``BUSY_SHARE``)."""
+    (1 min), mean CPU clock (MHz) before / after, the share of all cores' time that OTHER
+    processes used meanwhile (None: unknown), seconds, and busy (that share exceeded
+    ``BUSY_SHARE``)."""
 
-    load_before: float
-    load_after: float
-    mhz_before: float
-    mhz_after: float
-    others_share: float
+    load_before: float | None
+    load_after: float | None
+    mhz_before: float | None
+    mhz_after: float | None
+    others_share: float | None
     seconds: float
     busy: bool
 
     def line(self) -> str:
-        share = f"{100 * self.others_share:.0f} %" if self.others_share == self.others_share else "unknown"
-        return (f"load average (1 min) {self.load_before:.2f} -> {self.load_after:.2f}, CPU {self.mhz_before:.0f} -> "
-                f"{self.mhz_after:.0f} MHz, other processes used {share} of the cores over {self.seconds:.0f} s"
-                f" -> {'BUSY' if self.busy else 'quiet'}")
+        def g(v: float | None, fmt: str) -> str:
+            return "?" if v is None else format(v, fmt)
+
+        share = "unknown" if self.others_share is None else f"{100 * self.others_share:.0f} %"
+        return (f"load average (1 min) {g(self.load_before, '.2f')} -> {g(self.load_after, '.2f')}, CPU "
+                f"{g(self.mhz_before, '.0f')} -> {g(self.mhz_after, '.0f')} MHz, other processes used {share} of "
+                f"the cores over {self.seconds:.0f} s -> {'BUSY' if self.busy else 'quiet'}")
 
 
 class CpuWindow:
@@ -174,18 +190,18 @@ class CpuWindow:
     def stop(self) -> MachineState:
         seconds = time.monotonic() - self._t
         j1, own = _cpu_jiffies(), _own_cpu_s() - self._own
-        share = float("nan")
+        share: float | None = None
         if self._jiffies is not None and j1 is not None and j1[1] > self._jiffies[1]:
             hz = os.sysconf("SC_CLK_TCK") if hasattr(os, "sysconf") else 100
             busy = (j1[0] - self._jiffies[0]) / hz
             total = (j1[1] - self._jiffies[1]) / hz
             share = max(0.0, (busy - own) / total)
         return MachineState(self._load, _load1(), self._mhz, cpu_mhz(), share, seconds,
-                            bool(share > self.busy_share))
+                            share is not None and share > self.busy_share)
 
 
-def _load1() -> float:
+def _load1() -> float | None:
     try:
         return os.getloadavg()[0]
     except OSError:
-        return float("nan")
+        return None

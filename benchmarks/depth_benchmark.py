@@ -1,8 +1,9 @@
-"""Benchmark (not a test) of the depth stage at 320 x 240 on one core, side by side with
-the DST-II port used by digit-depth / PyTouch / tactile-in-hand, and at the network
-resolution (80 x 60, ``DepthOptions(downscale=4)``, the compact depth bundles).
+"""The depth benchmark page (docs/depth_benchmark.md): the depth stage at 320 x 240 on one core,
+side by side with the DST-II port used by digit-depth / PyTouch / tactile-in-hand
+(:mod:`benchmarks.harness.poisson_port`), and at the network resolution (80 x 60,
+``DepthOptions(downscale=4)``, the compact depth bundles).
 
-    python benchmarks/bench_depth.py [--repeats 200] [--write docs/depth_benchmark.md]
+    python -m benchmarks.depth_benchmark [--repeats 200] [--write docs/depth_benchmark.md]
 
 Needs ../shared/data (paper MLP, FOTS DIGIT ball presses) and SciPy (for the port).
 """
@@ -15,32 +16,15 @@ for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_v, "1")
 
 import argparse  # noqa: E402
+import tempfile  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-REPO = Path(__file__).resolve().parents[1]
-DATA = Path(os.environ.get("TACTILE_FORCE_SHARED_DATA", REPO.parent / "shared" / "data"))
-
-
-def port_solve(gx: np.ndarray, gy: np.ndarray) -> np.ndarray:
-    """The widely copied port, re-stated for comparison: interior (H-2) x (W-2) with a zero
-    frame ring, orthonormal DST-II forward / DST-III inverse, eigenvalues pi k/(n+2)."""
-    import scipy.fft as sfft
-
-    h, w = gx.shape
-    f = np.zeros((h, w))
-    f[:-1, 1:] += gx[:-1, 1:] - gx[:-1, :-1]
-    f[1:, :-1] += gy[1:, :-1] - gy[:-1, :-1]
-    f = f[1:-1, 1:-1]
-    spec = sfft.dstn(f, type=2, norm="ortho", workers=1)
-    ky = np.arange(1, f.shape[0] + 1)[:, None]
-    kx = np.arange(1, f.shape[1] + 1)[None, :]
-    denom = (2 * np.cos(np.pi * kx / (f.shape[1] + 2)) - 2) + (2 * np.cos(np.pi * ky / (f.shape[0] + 2)) - 2)
-    out = np.zeros((h, w))
-    out[1:-1, 1:-1] = sfft.idstn(spec / denom, type=2, norm="ortho", workers=1)
-    return out
+from .harness.machine import describe_machine, header  # noqa: E402
+from .harness.paths import shared_data  # noqa: E402
+from .harness.poisson_port import port_solve  # noqa: E402
 
 
 def _time(fn, repeats: int) -> float:
@@ -97,24 +81,24 @@ def main() -> None:
     # Whole stage on real frames.
     import glob
 
-    bg = cv2.imread(str(DATA / "digit_backgrounds" / "fots_digit_bg.png"))
-    files = sorted(glob.glob(str(DATA / "fots_digit" / "ball_presses" / "*.png")))
+    bg = cv2.imread(str(shared_data() / "digit_backgrounds" / "fots_digit_bg.png"))
+    files = sorted(glob.glob(str(shared_data() / "fots_digit" / "ball_presses" / "*.png")))
     presses = []
     for f in files[:32]:
         img = cv2.imread(f)
         c = detect_press_circle(img, bg)
         if c is not None:
             presses.append(Press(img, c, f))
-    lut_path = Path("/tmp") / "bench_depth_fots_lut.npz"
+    lut_path = Path(tempfile.gettempdir()) / "depth_benchmark_fots_lut.npz"
     fit_lut(presses, bg, 2.35 * 19.58, LUTOptions()).save(lut_path)
     test = cv2.imread(files[-1])
     c = detect_press_circle(test, bg)
     mask = np.zeros((H, W), np.uint8)
     cv2.circle(mask, (int(c.cx), int(c.cy)), int(c.r * 1.2), 255, -1)
     full = np.full((H, W), 255, np.uint8)
-    aur = cv2.imread(str(DATA / "aurova_digit_grasp" / "images" / "1516.png"))
-    aur_mask = (cv2.imread(str(DATA / "aurova_digit_grasp" / "filt_img_depth" / "depth_img_1516.png"), 0) > 0)
-    mlp = DATA / "aurova_digit_depth_mlp.npz"
+    aur = cv2.imread(str(shared_data() / "aurova_digit_grasp" / "images" / "1516.png"))
+    aur_mask = (cv2.imread(str(shared_data() / "aurova_digit_grasp" / "filt_img_depth" / "depth_img_1516.png"), 0) > 0)
+    mlp = shared_data("aurova_digit_depth_mlp.npz")
     lut_stage = DepthStage(DepthOptions(lut_path))
     grid_stage = DepthStage(DepthOptions(lut_path, downscale=4))
     from tactile_force.edge.gate.reduce import default_reduction, reduce_frames
@@ -123,7 +107,7 @@ def main() -> None:
     mask_small = np.ascontiguousarray(mask[::4, ::4])
     mlp_stage = DepthStage(DepthOptions(mlp))
     paper = DepthStage(DepthOptions(mlp, mode="paper"))
-    paper.set_reference([cv2.imread(str(DATA / "aurova_digit_grasp" / "images" / "1500.png"))])
+    paper.set_reference([cv2.imread(str(shared_data() / "aurova_digit_grasp" / "images" / "1500.png"))])
     stage_rows = [
         (f"exact, our LUT, press mask ({np.count_nonzero(mask)} px)", lambda: lut_stage.process(test, mask)),
         ("exact, our LUT, full-frame mask (76800 px)", lambda: lut_stage.process(test, full)),
@@ -140,15 +124,6 @@ def main() -> None:
     for name, fn in stage_rows:
         assert fn().ok
         lines.append(f"| {name} | {_time(fn, max(20, args.repeats // 4)):.2f} |")
-    import sys
-
-    if __package__:  # imported as tactile_force.benchmarks.bench_depth or benchmarks.bench_depth
-        from .machine import describe_machine, header
-    else:  # run as a script: python benchmarks/bench_depth.py
-        if str(REPO) not in sys.path:
-            sys.path.insert(0, str(REPO))
-        from benchmarks.machine import describe_machine, header
-
     import scipy
 
     machine = describe_machine()
@@ -157,7 +132,7 @@ def main() -> None:
     print(text)
     print(f"\nmachine: {machine.line()}; {machine.background_load}")
     if args.write:
-        command = f"python benchmarks/bench_depth.py --repeats {args.repeats} --write {args.write}"
+        command = f"python -m benchmarks.depth_benchmark --repeats {args.repeats} --write {args.write}"
         Path(args.write).write_text(header("Depth stage benchmark", command, machine, notes) + "\n" + text + "\n")
 
 if __name__ == "__main__":
