@@ -157,14 +157,6 @@ def overall_verdict(verdicts: Sequence[str]) -> str:
 
 
 # ----------------------------------------------------------------------------- what is measured
-def shipped_bundles() -> list[Path]:
-    """Every bundle shipped in the package, the default first: the folders of
-    :func:`tactile_force.edge.scene.shipped_bundles`, as a list."""
-    from tactile_force.edge.scene import shipped_bundles as shipped
-
-    return list(shipped().values())
-
-
 def _depth_factory(manifest) -> Callable[[], object] | None:
     """The bundle's own depth stage when its manifest records one; None: the virtual DIGIT's
     calibration (:func:`benchmarks.harness.frames.virtual_depth_stage`), which the frames come from."""
@@ -339,7 +331,7 @@ def run_bench(bundles: Sequence[Path], frames: int = 1000, threads: int = 1, bud
     Parameters
     ----------
     bundles : sequence of Path
-        Bundle folders (e.g. :func:`shipped_bundles`).
+        Bundle folders (e.g. the values of :func:`tactile_force.edge.scene.shipped_bundles`).
     frames, threads, budget_ms, repeats, pause_s
         As in :func:`bench_bundle`.
     data, background : Path, optional
@@ -486,4 +478,4 @@ def read_report(path: str | os.PathLike) -> BenchReport:
 __all__ = ["Attempt", "BenchError", "BenchReport", "BinError", "BundleResult", "Machine", "MachineState", "Timing",
            "bench_bundle", "contact_frames", "markdown", "overall_verdict", "read_report", "replay_error",
            "replay_readings",
-           "run_bench", "shipped_bundles", "text_table", "write_report"]
+           "run_bench", "text_table", "write_report"]

@@ -50,6 +50,7 @@ from .harness.cases import (  # noqa: F401 - the suite's tests import these from
     make_dataset,
     refusal,
     run_cli,
+    toml_text,
     with_timeout,
     worst,
     write_frame_png,
@@ -425,38 +426,6 @@ def probe_manifest(folder: Path, case: tuple[str, Any], *, cli: bool = False) ->
 
 
 # =============================================================================== scenes
-def toml_text(data: dict) -> str:
-    """A TOML document for ``data`` (scalars, arrays of scalars, tables, arrays of tables)."""
-
-    def scalar(v: Any) -> str:
-        if isinstance(v, bool):
-            return "true" if v else "false"
-        if isinstance(v, int):
-            return str(v)
-        if isinstance(v, float):
-            return "nan" if v != v else ("inf" if v > 0 else "-inf") if math.isinf(v) else repr(v)
-        if isinstance(v, str):
-            return json.dumps(v)
-        if isinstance(v, list):
-            return "[" + ", ".join(scalar(x) for x in v) + "]"
-        if isinstance(v, dict):
-            return "{" + ", ".join(f"{json.dumps(k)} = {scalar(x)}" for k, x in v.items()) + "}"
-        raise TypeError(type(v))
-
-    lines: list[str] = []
-    tables = {k: v for k, v in data.items() if isinstance(v, dict)}
-    arrays = {k: v for k, v in data.items() if isinstance(v, list) and v and all(isinstance(x, dict) for x in v)}
-    for k, v in data.items():
-        if k not in tables and k not in arrays:
-            lines.append(f"{json.dumps(k)} = {scalar(v)}")
-    for k, v in tables.items():
-        lines.append(f"[{json.dumps(k)}]")
-        lines += [f"{json.dumps(kk)} = {scalar(vv)}" for kk, vv in v.items()]
-    for k, rows in arrays.items():
-        for row in rows:
-            lines.append(f"[[{json.dumps(k)}]]")
-            lines += [f"{json.dumps(kk)} = {scalar(vv)}" for kk, vv in row.items()]
-    return "\n".join(lines) + "\n"
 
 
 def base_scene(folder: Path) -> dict:
@@ -1265,7 +1234,7 @@ COVERAGE_19 = [
 ]
 
 def page(tallies: list[Tally], command: str, examples: int) -> str:
-    from .machine import describe_machine, header
+    from .harness.machine import describe_machine, header
 
     disk = next((t.note for t in tallies if t.note), "")
     bad = failures(tallies)
@@ -1294,7 +1263,7 @@ def page(tallies: list[Tally], command: str, examples: int) -> str:
 def run(args, argv: list[str]) -> int:
     """``python -m benchmarks robustness``: run the catalogue, print the table, write the page.
     Exit 1 when any case is a traceback, silent wrong, hang, data lost or valid refused."""
-    from .machine import command_line
+    from .harness.machine import command_line
 
     examples = 15 if args.quick else args.examples
     out = Path(args.out)

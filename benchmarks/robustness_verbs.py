@@ -13,7 +13,7 @@ when it did not answer in time.
 
 Each category is a function ``(inputs, examples) -> (cases, note)`` listed in
 :data:`CATEGORIES`; ``cases`` are ``(what, probe)`` pairs run by
-:func:`benchmarks.robustness_issue19.run_cases`. ``tests/robustness/test_verb_promises.py``
+:func:`benchmarks.robustness_inputs.run_cases`. ``tests/robustness/test_verb_promises.py``
 runs the same categories on a few generated examples.
 """
 
@@ -39,7 +39,7 @@ import numpy as np
 from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
 
-from .robustness import (
+from .harness.cases import (
     Outcome,
     Verdict,
     default_bundle_dir,
@@ -48,7 +48,7 @@ from .robustness import (
     with_timeout,
     worst,
 )
-from .robustness_issue19 import TF_CLI, digest, guarded, mcap_replay, tiny_checkpoint
+from .robustness_inputs import TF_CLI, digest, guarded, mcap_replay, tiny_checkpoint
 
 Case = tuple[str, Callable[[], Verdict]]
 Cases = tuple[list[Case], str]

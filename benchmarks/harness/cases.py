@@ -13,12 +13,15 @@ from __future__ import annotations
 import contextlib
 import enum
 import io
+import json
+import math
 import sys
 import threading
 import traceback
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -166,3 +169,37 @@ def default_bundle_dir() -> Path:
     import tactile_force.edge
 
     return Path(tactile_force.edge.__file__).resolve().parent / "models" / "default"
+
+
+def toml_text(data: dict) -> str:
+    """A TOML document for ``data`` (scalars, arrays of scalars, tables, arrays of tables)."""
+
+    def scalar(v: Any) -> str:
+        if isinstance(v, bool):
+            return "true" if v else "false"
+        if isinstance(v, int):
+            return str(v)
+        if isinstance(v, float):
+            return "nan" if v != v else ("inf" if v > 0 else "-inf") if math.isinf(v) else repr(v)
+        if isinstance(v, str):
+            return json.dumps(v)
+        if isinstance(v, list):
+            return "[" + ", ".join(scalar(x) for x in v) + "]"
+        if isinstance(v, dict):
+            return "{" + ", ".join(f"{json.dumps(k)} = {scalar(x)}" for k, x in v.items()) + "}"
+        raise TypeError(type(v))
+
+    lines: list[str] = []
+    tables = {k: v for k, v in data.items() if isinstance(v, dict)}
+    arrays = {k: v for k, v in data.items() if isinstance(v, list) and v and all(isinstance(x, dict) for x in v)}
+    for k, v in data.items():
+        if k not in tables and k not in arrays:
+            lines.append(f"{json.dumps(k)} = {scalar(v)}")
+    for k, v in tables.items():
+        lines.append(f"[{json.dumps(k)}]")
+        lines += [f"{json.dumps(kk)} = {scalar(vv)}" for kk, vv in v.items()]
+    for k, rows in arrays.items():
+        for row in rows:
+            lines.append(f"[[{json.dumps(k)}]]")
+            lines += [f"{json.dumps(kk)} = {scalar(vv)}" for kk, vv in row.items()]
+    return "\n".join(lines) + "\n"

@@ -52,9 +52,9 @@ def configure(p: argparse.ArgumentParser) -> None:
 def _check_args(args: argparse.Namespace) -> list[Path]:
     bundles = [Path(b) for b in args.bundle] if args.bundle else None
     if bundles is None:
-        from tactile_force.benchmarks.bench import shipped_bundles
+        from ..scene import shipped_bundles
 
-        bundles = shipped_bundles()
+        bundles = list(shipped_bundles().values())
         if not bundles:
             raise BenchInputError("no shipped bundle found in this install; give --bundle B")
     for b in bundles:
@@ -87,7 +87,7 @@ def _check_args(args: argparse.Namespace) -> list[Path]:
 
 def main(args: argparse.Namespace) -> int:
     from tactile_force.benchmarks.bench import run_bench, text_table, write_report
-    from tactile_force.benchmarks.stats import MIN_P99_READINGS
+    from tactile_force.benchmarks.harness.stats import MIN_P99_READINGS
 
     from ..files.atomic import staged_folder
     from ..report.logs import quiet_loggers

@@ -20,12 +20,11 @@ from tactile_force.benchmarks.bench import (
     contact_frames,
     overall_verdict,
     read_report,
-    shipped_bundles,
 )
 from tactile_force.benchmarks.harness.budget import BudgetVerdict, judge
 from tactile_force.benchmarks.harness.machine import MachineState
 from tactile_force.edge.cli import main
-from tactile_force.edge.scene import default_bundle_path
+from tactile_force.edge.scene import shipped_bundles, default_bundle_path
 
 FAST = ["--frames", "100", "--repeats", "1"]
 
@@ -38,7 +37,7 @@ def synth_dir(tmp_path_factory) -> Path:
 
 
 def test_shipped_bundles_start_with_the_default():
-    found = shipped_bundles()
+    found = list(shipped_bundles().values())
     assert found and found[0] == default_bundle_path()
     assert all((p / "model.json").is_file() for p in found)
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 import pytest
 from hypothesis import given
 
-from benchmarks.robustness_issue19 import run_cases
+from benchmarks.robustness_inputs import run_cases
 from benchmarks.robustness_verbs import CATEGORIES, Inputs, probe_option, wrong_options
 from tests.robustness.conftest import ROBUST
 
