@@ -37,7 +37,7 @@ _moved.install()  # the flat module paths of earlier versions (tactile_force.edg
 _LAZY = {
     # runtime
     "ContactGate": "gate", "GateOptions": "gate", "GateResult": "gate",
-    "OnnxForceModel": "model", "LadderChoice": "model.onnx_model", "choose_bundle": "model.onnx_model",
+    "OnnxForceModel": "model", "LadderChoice": "model.ladder", "choose_bundle": "model.ladder",
     "CsvWriter": "outputs", "JsonlWriter": "outputs", "StdoutWriter": "outputs",
     "ForceRuntime": "runtime", "RuntimeOptions": "runtime", "RuntimeStats": "runtime", "Sensor": "runtime",
     "plan_stages": "runtime",
@@ -103,7 +103,8 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time these load lazily
     from .data.metrics import ErrorReport, ErrorStats, error_report, error_stats, relative_error
     from .depth import DepthOptions, DepthResult, DepthStage, MaxDeformationBaseline, NormalLUT
     from .gate.contact_gate import ContactGate, GateOptions, GateResult
-    from .model.onnx_model import LadderChoice, OnnxForceModel, choose_bundle
+    from .model.ladder import LadderChoice, choose_bundle
+    from .model.onnx_model import OnnxForceModel
     from .outputs import CsvWriter, JsonlWriter, StdoutWriter
     from .runtime.loop import ForceRuntime, RuntimeOptions, RuntimeStats, Sensor, plan_stages
     from .scene import Scene, build_scene, default_bundle_path, describe_scene, load_scene, shipped_bundles

@@ -17,7 +17,8 @@ from .model import Clock, Scene
 
 def load_model(scene: Scene) -> tuple[Any, str, list[str]]:
     """(model, backend actually used, notes) for the scene's bundle(s) and backend."""
-    from ..model.onnx_model import OnnxForceModel, choose_bundle
+    from ..model.ladder import choose_bundle
+    from ..model.onnx_model import OnnxForceModel
 
     notes: list[str] = []
     if scene.backend == "oak":

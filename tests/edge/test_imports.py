@@ -44,3 +44,16 @@ def test_an_rgbmod_runtime_never_loads_depth_synthetic_torch_or_devices(tmp_path
     assert _loaded(mods, "onnxruntime") and _loaded(mods, "tactile_force.edge.runtime.loop")
     for heavy in HEAVY:
         assert not _loaded(mods, heavy), heavy
+
+
+def test_the_bundle_ladder_has_its_own_module_and_its_old_path_warns():
+    import pytest
+    from tactile_force.edge.model import ladder, onnx_model
+
+    for name in ("LadderChoice", "measure_p99_ms", "pick_from_ladder", "choose_bundle"):
+        assert getattr(ladder, name).__module__ == "tactile_force.edge.model.ladder"
+        assert name not in vars(onnx_model)
+        with pytest.warns(DeprecationWarning, match=rf"onnx_model\.{name} moved to tactile_force\.edge\.model\.ladder"):
+            assert getattr(onnx_model, name) is getattr(ladder, name)
+    with pytest.raises(AttributeError, match="no attribute 'nothing_here'"):
+        onnx_model.nothing_here  # noqa: B018

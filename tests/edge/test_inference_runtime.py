@@ -13,7 +13,8 @@ import pytest
 from tactile_force.edge import BundleError, Flags, FrameError, SourceError, TimedFrame
 from tactile_force.edge.frames import FrameSource
 from tactile_force.edge.gate.contact_gate import ContactGate
-from tactile_force.edge.model.onnx_model import OnnxForceModel, choose_bundle
+from tactile_force.edge.model.ladder import choose_bundle
+from tactile_force.edge.model.onnx_model import OnnxForceModel
 from tactile_force.edge.outputs import CsvWriter, JsonlWriter
 from tactile_force.edge.runtime.loop import ForceRuntime, RuntimeOptions, Sensor, plan_stages
 from tactile_force.edge.sources.files import ReplayFolderSource, load_background
