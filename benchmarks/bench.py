@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from tactile_force.edge.runtime.replay import replay_readings
 
 SCHEMA = "tactile-force-bench/1"
 REPORT_JSON, REPORT_MD, PLOT_PNG = "report.json", "report.md", "pareto.png"
@@ -243,33 +244,6 @@ def _depth_factory(manifest) -> Callable[[], object] | None:
     from tactile_force.edge.runtime.loop import build_depth_stage
 
     return lambda: build_depth_stage(None, manifest)
-
-
-def replay_readings(bundle: Path, data: Path, background: Path | None, threads: int = 1,
-                    warn: Callable[[str], None] | None = None, calibrate: bool = True) -> list:
-    """The readings with truth of ``bundle`` on the labelled folder ``data`` (authors' layout),
-    replayed through the runtime exactly as ``tactile-force run --source DATA --bundle BUNDLE
-    --background BG`` builds it (list of ForceReading, in frame order). ``warn``: gets the
-    scene's warnings (default: dropped). ``calibrate=False``: the model's output is not put
-    through the bundle's force calibration (``raw_force_n`` is then the raw estimate the
-    runtime's inputs give, what ``calibrate-force`` fits on).
-
-    Raises a TactileForceError subclass (exit 2) when ``data``, ``background`` or ``bundle``
-    is unusable."""
-    from tactile_force.edge.scene import build_scene, check_scene, scene_from_flags
-
-    scene = scene_from_flags(str(data), bundle=str(bundle), background=str(background) if background else None)
-    scene.threads = threads
-    scene = check_scene(scene)
-    built = build_scene(scene, warn=warn or (lambda m: None))
-    if not calibrate:
-        built.runtime.model.calibration = None  # OnnxForceModel(calibrate=False)
-    readings: list = []
-    try:
-        built.runtime.run([], on_reading=lambda r: readings.append(r) if r.truth_n is not None else None)
-    finally:
-        built.close()
-    return readings
 
 
 def replay_error(bundle: Path, data: Path, background: Path | None, threads: int = 1,

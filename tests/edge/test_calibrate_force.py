@@ -224,7 +224,7 @@ def test_a_depth_bundle_is_fitted_on_the_depth_the_runtime_makes(variant, aurova
     """Presses without depth images are accepted; the fit's raw estimates are the runtime's, so the
     calibrated bundle reads on its own fit frames, through the runtime 'run' builds, exactly what
     the fitted map gives (the filt_img_depth fit read RE 0.156 through 'run' against 0.008 in the fit)."""
-    from tactile_force.benchmarks.bench import replay_readings
+    from tactile_force.edge.runtime.replay import replay_readings
     from tactile_force.edge.reading import MAX_VALID_FORCE_N
     from tactile_force.edge.scene import shipped_bundles
 
