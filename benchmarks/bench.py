@@ -323,7 +323,7 @@ def bench_bundle(path: Path, pool, frames: int = 1000, threads: int = 1, budget_
 
     def once():
         # warnings about the bench's own frames
-        with _quiet("tactile_force.edge.runtime.loop", "tactile_force.edge.gate.contact_gate"):
+        with _quiet("tactile_force.edge.runtime", "tactile_force.edge.gate.contact_gate"):
             r = measure(case, pool, bare=False, depth=depth)
         return r, r.stages[JUDGED].p99
 

@@ -23,6 +23,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 from tactile_force.edge.frames import FrameSource, TimedFrame
+from tactile_force.edge.runtime.options import ForceModelBase
 
 from .bundles import ModelConfig, latency_bundle
 from .frames import FramePool, depth_stage, frame_pool
@@ -128,7 +129,7 @@ class ListSource(FrameSource):
         return TimedFrame(self.frames[i], now, i, self.truth[i], arrival_ns=now)
 
 
-class TorchEager:
+class TorchEager(ForceModelBase):
     """The paper's way: PyTorch eager fp32 (ForceNet = in-graph preprocessing + ResNet-18)."""
 
     def __init__(self, cfg: ModelConfig, threads: int, seed: int = 0) -> None:
@@ -149,7 +150,7 @@ class TorchEager:
             return self.net(*xs).numpy().reshape(-1)
 
 
-class OpenVinoModel:
+class OpenVinoModel(ForceModelBase):
     """The same ONNX graph on OpenVINO's CPU plugin (latency hint, one stream, ``threads``
     inference threads, static batch 1). Needs the optional ``openvino`` package (bench extra)."""
 
@@ -173,7 +174,7 @@ class OpenVinoModel:
         return np.asarray(next(iter(out.values())), np.float32).reshape(-1)
 
 
-class PolynomialBaseline:
+class PolynomialBaseline(ForceModelBase):
     """The classical baseline: max deformation of the depth image -> 3rd-order polynomial (N)."""
 
     needs_depth = True

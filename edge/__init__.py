@@ -106,7 +106,9 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time these load lazily
     from .model.ladder import LadderChoice, choose_bundle
     from .model.onnx_model import OnnxForceModel
     from .outputs import CsvWriter, JsonlWriter, StdoutWriter
-    from .runtime.loop import ForceRuntime, RuntimeOptions, RuntimeStats, Sensor, plan_stages
+    from .runtime.depth_factory import plan_stages
+    from .runtime.loop import ForceRuntime
+    from .runtime.options import RuntimeOptions, RuntimeStats, Sensor
     from .scene import Scene, build_scene, default_bundle_path, describe_scene, load_scene, shipped_bundles
     from .sources.files import CameraSource, ReplayFolderSource, StreamLost, VideoFileSource, load_background, open_v4l2
     from .synthetic import (

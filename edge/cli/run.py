@@ -381,7 +381,8 @@ def run_demo(source, bundle: str | os.PathLike, out_dir: str | os.PathLike, thre
     from ..gate.contact_gate import ContactGate
     from ..model.onnx_model import OnnxForceModel
     from ..outputs import CsvWriter, format_reading
-    from ..runtime.loop import ForceRuntime, RuntimeOptions, Sensor
+    from ..runtime.loop import ForceRuntime
+    from ..runtime.options import RuntimeOptions, Sensor
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

@@ -149,7 +149,9 @@ def build_scene(scene: Scene, clock: Clock | None = None, warn: Callable[[str], 
     (default: added to the notes of the result, see :class:`LearningWatch`)."""
     import time
 
-    from ..runtime.loop import ForceRuntime, RuntimeOptions, Sensor, build_depth_stage
+    from ..runtime.depth_factory import build_depth_stage
+    from ..runtime.loop import ForceRuntime
+    from ..runtime.options import RuntimeOptions, Sensor
     from ..sources.files import load_background
 
     clock = clock or time.monotonic_ns

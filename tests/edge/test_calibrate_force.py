@@ -28,7 +28,7 @@ from tactile_force.edge.cli import main as cli_main
 from tactile_force.edge.bundle.force_calibration import ForceCalibration
 from tactile_force.edge.gate.contact_gate import ContactGate
 from tactile_force.edge.model.onnx_model import OnnxForceModel
-from tactile_force.edge.runtime.loop import ForceRuntime, Sensor
+from tactile_force.edge.runtime import ForceRuntime, Sensor
 from tactile_force.edge.sources.files import ReplayFolderSource, load_background
 
 from tests.conftest import shared_data
