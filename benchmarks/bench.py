@@ -24,6 +24,8 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from tactile_force.edge.runtime.replay import replay_readings
+
 from .harness.budget import Attempt
 from .harness.frames import contact_frames
 from .harness.machine import Machine, MachineState
@@ -162,36 +164,9 @@ def _depth_factory(manifest) -> Callable[[], object] | None:
     calibration (:func:`benchmarks.harness.frames.virtual_depth_stage`), which the frames come from."""
     if not manifest.needs_depth or manifest.depth is None:
         return None
-    from tactile_force.edge.runtime.loop import build_depth_stage
+    from tactile_force.edge.runtime import build_depth_stage
 
     return lambda: build_depth_stage(None, manifest)
-
-
-def replay_readings(bundle: Path, data: Path, background: Path | None, threads: int = 1,
-                    warn: Callable[[str], None] | None = None, calibrate: bool = True) -> list:
-    """The readings with truth of ``bundle`` on the labelled folder ``data`` (authors' layout),
-    replayed through the runtime exactly as ``tactile-force run --source DATA --bundle BUNDLE
-    --background BG`` builds it (list of ForceReading, in frame order). ``warn``: gets the
-    scene's warnings (default: dropped). ``calibrate=False``: the model's output is not put
-    through the bundle's force calibration (``raw_force_n`` is then the raw estimate the
-    runtime's inputs give, what ``calibrate-force`` fits on).
-
-    Raises a TactileForceError subclass (exit 2) when ``data``, ``background`` or ``bundle``
-    is unusable."""
-    from tactile_force.edge.scene import build_scene, check_scene, scene_from_flags
-
-    scene = scene_from_flags(str(data), bundle=str(bundle), background=str(background) if background else None)
-    scene.threads = threads
-    scene = check_scene(scene)
-    built = build_scene(scene, warn=warn or (lambda m: None))
-    if not calibrate:
-        built.runtime.model.calibration = None  # OnnxForceModel(calibrate=False)
-    readings: list = []
-    try:
-        built.runtime.run([], on_reading=lambda r: readings.append(r) if r.truth_n is not None else None)
-    finally:
-        built.close()
-    return readings
 
 
 def replay_error(bundle: Path, data: Path, background: Path | None, threads: int = 1,
@@ -265,7 +240,7 @@ def bench_bundle(path: Path, pool, frames: int = 1000, threads: int = 1, budget_
 
     def once():
         # warnings about the bench's own frames
-        with _quiet("tactile_force.edge.runtime.loop", "tactile_force.edge.gate.contact_gate"):
+        with _quiet("tactile_force.edge.runtime", "tactile_force.edge.gate.contact_gate"):
             r = measure(case, pool, bare=False, depth=depth)
         return r, r.stages[JUDGED].p99
 
@@ -304,7 +279,7 @@ def _first_problem(bundle, pool, depth) -> str:
     from tactile_force.edge.gate.contact_gate import ContactGate
     from tactile_force.edge.model.onnx_model import OnnxForceModel
     from tactile_force.edge.reading import Flags
-    from tactile_force.edge.runtime.loop import ForceRuntime, RuntimeOptions, Sensor
+    from tactile_force.edge.runtime import ForceRuntime, RuntimeOptions, Sensor
 
     from .harness.sources import MemorySource
 

@@ -66,7 +66,7 @@ def runtime_error(bundle_dir: Path, frames: np.ndarray, forces: np.ndarray, gain
     """Error of ``bundle_dir`` on labelled frames through ForceRuntime (see module doc)."""
     from tactile_force.edge import ContactGate, OnnxForceModel, load_bundle
     from tactile_force.edge.data.metrics import error_stats
-    from tactile_force.edge.runtime.loop import ForceRuntime, RuntimeOptions, Sensor
+    from tactile_force.edge.runtime import ForceRuntime, RuntimeOptions, Sensor
     from tactile_force.edge.synthetic import VirtualDigit, VirtualDigitOptions
 
     bundle = load_bundle(bundle_dir)
@@ -105,7 +105,7 @@ def interleaved_p50(bundles: list[Path], frames: int = 2000, warmup: int = 50, t
     import cv2
     from tactile_force.edge import ContactGate, OnnxForceModel, load_bundle
     from tactile_force.edge.reading import Flags
-    from tactile_force.edge.runtime.loop import ForceRuntime, RuntimeOptions, Sensor, build_depth_stage
+    from tactile_force.edge.runtime import ForceRuntime, RuntimeOptions, Sensor, build_depth_stage
 
     cv2.setNumThreads(threads)
     pool = contact_frames(64, seed=0)

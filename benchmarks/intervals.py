@@ -200,7 +200,7 @@ def real_section() -> tuple[str, dict]:
 def cost_section(repeats: int = 7, calls: int = 200_000) -> tuple[str, dict]:
     from tactile_force.edge.fitting.interval import fit_interval
     from tactile_force.edge.reading import Flags, ForceReading
-    from tactile_force.edge.runtime.loop import ForceRuntime
+    from tactile_force.edge.runtime.bounds import bound
 
     rng = np.random.default_rng(0)
     y = rng.uniform(0.5, 18.0, 4000)
@@ -214,22 +214,12 @@ def cost_section(repeats: int = 7, calls: int = 200_000) -> tuple[str, dict]:
             bounds(forces[i & 1023], False)
         return (time.perf_counter_ns() - t0) / calls / 1e3
 
-    class _Model:  # only what ForceRuntime._bound reads: the bundle's manifest
-        needs_depth = False
-
-        class bundle:  # noqa: N801
-            class manifest:  # noqa: N801
-                interval = iv
-                sha256 = ""
-
-    rt = object.__new__(ForceRuntime)  # the interval step alone, without sources or a session
-    rt.model = _Model()
     readings = [ForceReading("s", 0, 0, f, Flags.NONE) for f in forces]
 
     def per_call_runtime() -> float:
         t0 = time.perf_counter_ns()
         for i in range(calls):
-            rt._bound(readings[i & 1023])
+            bound(readings[i & 1023], iv)
         return (time.perf_counter_ns() - t0) / calls / 1e3
 
     a = sorted(per_call_bounds() for _ in range(repeats))
@@ -243,7 +233,7 @@ def cost_section(repeats: int = 7, calls: int = 200_000) -> tuple[str, dict]:
         "| step | us per reading |",
         "|---|---:|",
         f"| `ForceInterval.bounds(force_n, saturated)` | {a[len(a) // 2]:.3f} ({a[0]:.3f}-{a[-1]:.3f}) |",
-        f"| `ForceRuntime._bound(reading)` (flags, bounds, three fields set) | {b[len(b) // 2]:.3f} "
+        f"| `runtime.bounds.bound(reading, interval)` (flags, bounds, three fields set) | {b[len(b) // 2]:.3f} "
         f"({b[0]:.3f}-{b[-1]:.3f}) |",
         "",
         "Goal: under 2 us. No array is allocated per reading (a bisect over the bin edges and two multiplications).",

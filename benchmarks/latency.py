@@ -26,6 +26,7 @@ from typing import TypeVar
 
 import cv2
 import numpy as np
+from tactile_force.edge.runtime.options import ForceModelBase
 
 from .bundles import latency_bundle
 from .harness.frames import (
@@ -51,7 +52,7 @@ PAPER_FIGURES = {
 }
 
 
-class TorchEager:
+class TorchEager(ForceModelBase):
     """The paper's way: PyTorch eager fp32 (ForceNet = in-graph preprocessing + ResNet-18)."""
 
     def __init__(self, cfg: ModelConfig, threads: int, seed: int = 0) -> None:
@@ -72,7 +73,7 @@ class TorchEager:
             return self.net(*xs).numpy().reshape(-1)
 
 
-class OpenVinoModel:
+class OpenVinoModel(ForceModelBase):
     """The same ONNX graph on OpenVINO's CPU plugin (latency hint, one stream, ``threads``
     inference threads, static batch 1). Needs the optional ``openvino`` package (bench extra)."""
 
@@ -96,7 +97,7 @@ class OpenVinoModel:
         return np.asarray(next(iter(out.values())), np.float32).reshape(-1)
 
 
-class PolynomialBaseline:
+class PolynomialBaseline(ForceModelBase):
     """The classical baseline: max deformation of the depth image -> 3rd-order polynomial (N)."""
 
     needs_depth = True
@@ -318,7 +319,7 @@ def two_sensors(bundle: Path, pool, seconds: float) -> tuple[list[list[object]],
     60 fps in contact, unsynchronised (the second half a frame later)."""
     from tactile_force.edge import ContactGate, OnnxForceModel
     from tactile_force.edge.reading import Flags
-    from tactile_force.edge.runtime.loop import ForceRuntime, RuntimeOptions, Sensor
+    from tactile_force.edge.runtime import ForceRuntime, RuntimeOptions, Sensor
 
     n = int(seconds * 60)
     rows = []

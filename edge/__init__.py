@@ -42,7 +42,7 @@ _LAZY = {
     "CameraSource": "sources", "ReplayFolderSource": "sources", "VideoFileSource": "sources",
     "StreamLost": "sources", "load_background": "sources", "VirtualDigitSource": "synthetic",
     "ContactGate": "gate", "GateOptions": "gate", "GateResult": "gate",
-    "OnnxForceModel": "model", "LadderChoice": "model.onnx_model", "choose_bundle": "model.onnx_model",
+    "OnnxForceModel": "model", "LadderChoice": "model.ladder", "choose_bundle": "model.ladder",
     "ForceRuntime": "runtime", "RuntimeOptions": "runtime", "RuntimeStats": "runtime", "Sensor": "runtime",
     "CsvWriter": "outputs", "JsonlWriter": "outputs", "StdoutWriter": "outputs",
     # scenes and the shipped bundles
@@ -115,7 +115,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs; at run time these load lazily
     from .data.dataset import AuthorsDataset
     from .gate import ContactGate, GateOptions, GateResult
     from .model import OnnxForceModel
-    from .model.onnx_model import LadderChoice, choose_bundle
+    from .model.ladder import LadderChoice, choose_bundle
     from .outputs import CsvWriter, JsonlWriter, StdoutWriter
     from .runtime import ForceRuntime, RuntimeOptions, RuntimeStats, Sensor
     from .scene import Scene, build_scene, default_bundle_path, describe_scene, load_scene, shipped_bundles

@@ -28,7 +28,7 @@ MOVED: dict[str, tuple[str, ...]] = {
     "interval": ("bundle.interval", "fitting.interval"),
     "force_calibration": ("bundle.force_calibration",),
     "graph_facts": ("bundle.graph_facts",),
-    "inference": ("model.onnx_model",),
+    "inference": ("model.onnx_model", "model.ladder"),
     "grabbers": ("runtime.grabbers",),
     "judging": ("runtime.judging",),
     "dataset": ("data.dataset",),

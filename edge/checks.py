@@ -1,13 +1,15 @@
 """Argument checks for the public constructors and options dataclasses, made once at
 construction (never per frame).
 
-Two helpers, so every constructor refuses a wrong argument the same way:
+Three helpers, so every constructor refuses a wrong argument the same way:
 
 - :func:`expect`: one argument against a type (or a tuple of types) and optional bounds,
   ``expect(threads, int, "OnnxForceModel.threads", ge=1)``;
 - :func:`check_fields`: every field of a dataclass against its annotation and the
   constraints declared on it with :func:`tactile_force.edge.typed_json.check`
-  (``field(default=1, metadata=check(ge=1))``), called from ``__post_init__``.
+  (``field(default=1, metadata=check(ge=1))``), called from ``__post_init__``;
+- :func:`expect_members`: an object against a ``typing.Protocol`` (every member it
+  declares is there, every method callable), ``expect_members(model, ForceModel, "ForceRuntime.model")``.
 
 Types are read as the typed reader (:mod:`.typed_json`) reads annotations, for Python
 values: ``bool`` is not an integer (a count given ``True`` is refused); numpy numbers are
@@ -170,6 +172,42 @@ def expect(value: T, types_: Any, name: str, expected: str = "", *, gt: float | 
     """
     tp = Union[types_] if isinstance(types_, tuple) else types_  # noqa: UP007 - a runtime union of given types
     return check_value(tp, value, name, Check(gt=gt, ge=ge, lt=lt, le=le, nonempty=nonempty, expected=expected))
+
+
+def protocol_members(protocol: type) -> tuple[list[str], list[str]]:
+    """(attributes, methods) a ``typing.Protocol`` declares, public names only, in the order
+    of its definition: annotated names and properties are attributes, functions methods."""
+    attrs: list[str] = []
+    methods: list[str] = []
+    for cls in reversed(protocol.__mro__):
+        if cls in (object, typing.Protocol, typing.Generic):
+            continue
+        for name in [*cls.__dict__.get("__annotations__", {}), *cls.__dict__]:
+            if name.startswith("_") or name in attrs or name in methods:
+                continue
+            value = cls.__dict__.get(name)
+            (methods if callable(value) and not isinstance(value, (property, type)) else attrs).append(name)
+    return attrs, methods
+
+
+def expect_members(value: T, protocol: type, name: str, expected: str = "") -> T:
+    """``value`` when it has every member ``protocol`` (a ``typing.Protocol``) declares and
+    each declared method is callable; else an error naming ``name`` and what is missing.
+
+    Raises
+    ------
+    ArgumentTypeError
+        A member is missing (or a method is not callable); the message lists them all, e.g.
+        ``ForceRuntime.model=<Fake>: expected ...; Fake lacks closed, predict_reduced``.
+    """
+    attrs, methods = protocol_members(protocol)
+    missing = [m for m in attrs if not hasattr(value, m)]
+    missing += [m for m in methods if not callable(getattr(value, m, None))]
+    if missing:
+        want = expected or f"a {protocol.__name__} ({', '.join(attrs + methods)})"
+        raise ArgumentTypeError(f"{name}={_shown(value)}: expected {want}; {type(value).__name__} lacks "
+                                f"{', '.join(missing)} ({protocol.__name__} declares {', '.join(attrs + methods)})")
+    return value
 
 
 def check_fields(obj: object, owner: str = "") -> None:

@@ -454,7 +454,8 @@ def time_students(records: list[dict], runs: int, blocks: int) -> None:
     """Set each record's ``p99_ms`` to the median of ``blocks`` block p99s (ms) of a batch-2
     predict (``runs`` calls a block, one thread), the blocks taken round-robin over the
     students so that machine noise falls on all of them alike; ``p99_blocks_ms`` keeps them."""
-    from tactile_force.edge.model.onnx_model import OnnxForceModel, measure_p99_ms
+    from tactile_force.edge.model.ladder import measure_p99_ms
+    from tactile_force.edge.model.onnx_model import OnnxForceModel
 
     models = [OnnxForceModel(r["bundle"], threads=1) for r in records]
     try:

@@ -9,7 +9,7 @@ single node, kept float, buys back the most int8 error. Each configuration is me
 through the runtime on this host:
 
 - error vs truth: the labelled folder replayed through ``ForceRuntime`` exactly as ``tactile-force
-  run`` / ``bench --data`` do (:func:`tactile_force.benchmarks.bench.replay_readings`), RE and
+  run`` / ``bench --data`` do (:func:`tactile_force.edge.runtime.replay.replay_readings`), RE and
   MAE as ``run`` reports them; error vs fp32: the same readings against the fp32 bundle's, frame
   by frame;
 - latency: ``tactile-force bench``'s measurement (:func:`tactile_force.benchmarks.bench.bench_bundle`,
@@ -323,11 +323,12 @@ def run_study(fp32: Path, data: Path, out: Path, options: StudyOptions | None = 
     StudyReport
         Also written to ``out/study.json``.
     """
-    from tactile_force.benchmarks.bench import contact_frames, replay_readings
+    from tactile_force.benchmarks.bench import contact_frames
     from tactile_force.benchmarks.harness.machine import describe_machine
     from tactile_force.edge.bundle.store import load_bundle
     from tactile_force.edge.report.plots import ParetoPoint, pareto_front
     from tactile_force.edge.report.progress import progress
+    from tactile_force.edge.runtime.replay import replay_readings
 
     from .calibration import CalibrationData
     from .quantize import QuantizeOptions, quantize_bundle

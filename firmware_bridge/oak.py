@@ -1,8 +1,9 @@
 """Run a bundle's force model on a Luxonis OAK (depthai v3), host-fed.
 
 Frames go host -> input queue -> NeuralNetwork node (the compiled model of an NN Archive)
--> output queue -> host. ``predict`` has the CPU backend's signature, so the runtime wraps
-it in the same ForceReading and latency accounting.
+-> output queue -> host. :class:`OakForceModel` is a
+:class:`~tactile_force.edge.runtime.options.ForceModel` with the CPU backend's ``predict``
+signature, so the runtime wraps it in the same ForceReading and latency accounting.
 
 No device attached: depthai would search for about 11 s before raising; here the
 available devices are listed first (about 0.5 s) and
@@ -20,6 +21,8 @@ from datetime import timedelta
 from pathlib import Path
 
 import numpy as np
+from tactile_force.edge.bundle.force_calibration import ForceCalibration
+from tactile_force.edge.bundle.manifest import FrameReduction, InputKind
 from tactile_force.edge.bundle.store import Bundle, load_bundle
 from tactile_force.edge.errors import (
     AcceleratorUnavailableError,
@@ -30,6 +33,7 @@ from tactile_force.edge.errors import (
 )
 from tactile_force.edge.frames import FRAME_SHAPE, check_batch
 from tactile_force.edge.gate.reduce import FrameReducer
+from tactile_force.edge.runtime.options import ForceModelBase
 
 
 @dataclass
@@ -56,11 +60,16 @@ def available_oaks(dai=None) -> list:
     return list(dai.Device.getAllAvailableDevices())
 
 
-class OakForceModel:
+class OakForceModel(ForceModelBase):
     """A bundle's model running on an OAK: ``predict(rgb, depth=None) -> (N,) float32 N``.
 
     Single-input variants only (rgbmod: BGR frames; d/dmod: depth images); a two-input
     graph (rgbmod+d) raises AcceleratorUnavailableError so the runtime uses the CPU.
+
+    As a :class:`~tactile_force.edge.runtime.options.ForceModel`: ``predict`` reads full
+    frames and reduces them itself (``reduction`` is ``none``: the runtime never hands it the
+    gate's reduced image, :meth:`predict_reduced` is :meth:`predict`); no force calibration
+    is applied (``calibration`` None).
     """
 
     def __init__(self, bundle: Bundle | str | os.PathLike, options: OakOptions) -> None:
@@ -73,6 +82,13 @@ class OakForceModel:
                 f"bundle {self.bundle.name}: variant {m.variant!r} has {len(m.inputs)} inputs; the OAK backend "
                 "runs single-input graphs (rgbmod, d, dmod): use the CPU backend")
         self._spec = m.inputs[0]
+        #: the force calibration applied to the output: none (the network's force as it is)
+        self.calibration: ForceCalibration | None = None
+        #: ``none``: :meth:`predict` takes full frames (a graph at the network resolution gets
+        #: them reduced here, on the host)
+        self.reduction = FrameReduction()
+        #: the RGB images :meth:`predict_reduced` reads (full frames); None for d / dmod
+        self.rgb_shape: tuple[int, int, int] | None = FRAME_SHAPE if self._spec.kind == InputKind.RGB else None
         # A graph at the network resolution (manifest inputs[].reduction): frames are reduced
         # here, once, as OnnxForceModel.predict reduces them (edge/gate/reduce.py).
         self._reducer = (FrameReducer(self._spec.reduction, (*FRAME_SHAPE[:2], self._spec.channels))

@@ -197,7 +197,7 @@ def measure(case: LatencyCase, pool: FramePool | None = None, clock: Clock = tim
     """
     from tactile_force.edge import ContactGate
     from tactile_force.edge.reading import Flags
-    from tactile_force.edge.runtime.loop import ForceRuntime, RuntimeOptions, Sensor
+    from tactile_force.edge.runtime import ForceRuntime, RuntimeOptions, Sensor
 
     if case.engine not in ENGINES:
         raise ValueError(f"LatencyCase.engine={case.engine!r}; expected one of {ENGINES}")

@@ -46,7 +46,7 @@ def run_demo(source, bundle: str | os.PathLike, out_dir: str | os.PathLike, thre
     from ..gate.contact_gate import ContactGate
     from ..model.onnx_model import OnnxForceModel
     from ..outputs import CsvWriter, format_reading
-    from ..runtime.loop import ForceRuntime, RuntimeOptions, Sensor
+    from ..runtime import ForceRuntime, RuntimeOptions, Sensor
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)

@@ -154,7 +154,7 @@ def press_estimates(bundle_path: str | os.PathLike, model, frames: LabelledFrame
     RGBmod+D) reads the depth image the runtime's depth stage makes from the frame and the
     contact gate's mask: the presses in ``data`` are replayed through the same runtime
     ``tactile-force run --source DATA --bundle BUNDLE [--background BG]`` builds
-    (:func:`tactile_force.benchmarks.bench.replay_readings`, the bundle's calibration not
+    (:func:`tactile_force.edge.runtime.replay.replay_readings`, the bundle's calibration not
     applied), against ``background`` when given, else the background the gate learns from the
     first frames, as ``run`` does. A press the runtime gives no force (the gate saw no
     contact, it was learning its background, the depth stage failed) has no estimate.
@@ -167,7 +167,7 @@ def press_estimates(bundle_path: str | os.PathLike, model, frames: LabelledFrame
     """
     if not model.needs_depth:
         return raw_estimates(model, frames), [""] * len(frames.force)
-    from tactile_force.benchmarks.bench import replay_readings
+    from ..runtime.replay import replay_readings
 
     readings = replay_readings(Path(bundle_path), Path(data), Path(background) if background is not None else None,
                                warn=logging.getLogger(__name__).warning, calibrate=False)

@@ -17,7 +17,8 @@ from .model import Clock, Scene
 
 def load_model(scene: Scene) -> tuple[Any, str, list[str]]:
     """(model, backend actually used, notes) for the scene's bundle(s) and backend."""
-    from ..model.onnx_model import OnnxForceModel, choose_bundle
+    from ..model.ladder import choose_bundle
+    from ..model.onnx_model import OnnxForceModel
 
     notes: list[str] = []
     if scene.backend == "oak":
@@ -148,7 +149,9 @@ def build_scene(scene: Scene, clock: Clock | None = None, warn: Callable[[str], 
     (default: added to the notes of the result, see :class:`LearningWatch`)."""
     import time
 
-    from ..runtime.loop import ForceRuntime, RuntimeOptions, Sensor, build_depth_stage
+    from ..runtime.depth_factory import build_depth_stage
+    from ..runtime import ForceRuntime
+    from ..runtime.options import RuntimeOptions, Sensor
     from ..sources import load_background
 
     clock = clock or time.monotonic_ns

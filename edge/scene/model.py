@@ -115,7 +115,7 @@ class OutputSpec:
 class DepthSettings:
     """The scene's [depth] table: the DepthOptions fields the scene sets; None = not set
     (then the bundle manifest's :class:`~tactile_force.edge.bundle.manifest.DepthRecord`, else
-    the DepthOptions default: :func:`tactile_force.edge.runtime.loop.depth_options_for` merges
+    the DepthOptions default: :func:`tactile_force.edge.runtime.depth_factory.depth_options_for` merges
     them by field name). mapping: absolute (``package:FILE`` = a file in edge/assets)."""
 
     mapping: Path | None = field(default=None, metadata=check(

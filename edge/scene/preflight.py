@@ -32,7 +32,7 @@ def depth_problems(scene: Scene) -> list[str]:
     paper mode with a LUT, bad options), one message each; [] for RGB-only bundles."""
     from ..bundle.store import load_bundle
     from ..errors import BundleError, SceneError
-    from ..runtime.loop import build_depth_stage
+    from ..runtime.depth_factory import build_depth_stage
 
     out = []
     for b in scene.bundles:

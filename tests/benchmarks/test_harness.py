@@ -62,7 +62,7 @@ def test_measure_through_the_runtime_with_a_fake_clock():
     stage, around predict and at the end: source 0.5, gate / depth / inference 0.25 each,
     total (from arrival) 1.5, glue 0.75 ms. The shipped D bundle with its own depth stage."""
     from tactile_force.edge.bundle.store import load_bundle
-    from tactile_force.edge.runtime.loop import build_depth_stage
+    from tactile_force.edge.runtime import build_depth_stage
     from tactile_force.edge.scene import shipped_bundles
 
     from benchmarks.harness.frames import frame_pool

@@ -15,7 +15,7 @@ from tactile_force.edge.errors import SourceError
 from tactile_force.edge.gate.contact_gate import ContactGate
 from tactile_force.edge.model.onnx_model import OnnxForceModel
 from tactile_force.edge.reading import Flags
-from tactile_force.edge.runtime.loop import ForceRuntime, Sensor
+from tactile_force.edge.runtime import ForceRuntime, Sensor
 from tactile_force.edge.sources import CameraSource, load_background
 from tactile_force.firmware_bridge import DeviceKind, discover
 from tactile_force.firmware_bridge.hotplug import HotplugSource, UdevWatcher

@@ -113,6 +113,38 @@ def test_depth_variant_takes_depth_images(tmp_path, monkeypatch):
             oak.predict(np.zeros((2, 320, 240, 3), np.uint8))
 
 
+def test_the_oak_backend_is_a_force_model_the_runtime_serves(tmp_path, monkeypatch, aurova_dir):
+    """Every member the runtime reads is declared on the OAK backend (no probing): it reads full
+    frames (reduction none, no force calibration), and a runtime serves its estimates."""
+    from tactile_force.edge.checks import expect_members
+    from tactile_force.edge.gate.contact_gate import ContactGate
+    from tactile_force.edge.reading import Flags
+    from tactile_force.edge.runtime import ForceModel, ForceRuntime, RuntimeOptions, Sensor
+    from tactile_force.edge.sources import ReplayFolderSource, load_background
+
+    from tests.conftest import shared_data
+
+    dai = fake_depthai(["14442C10D1"], model=lambda img: float(img[..., 2].mean()) / 10.0)
+    monkeypatch.setitem(sys.modules, "depthai", dai)
+    b = _bundle(tmp_path)
+    with OakForceModel(b, OakOptions(archive=_archive(tmp_path, b).path)) as oak:
+        assert expect_members(oak, ForceModel, "oak") is oak
+        assert oak.calibration is None and oak.reduction.factor == 1 and oak.rgb_shape == (320, 240, 3)
+        gate = ContactGate()
+        gate.capture_background(load_background(shared_data("digit_backgrounds", "aurova_background_b.png")))
+        rt = ForceRuntime([Sensor("left", ReplayFolderSource(aurova_dir), gate)], oak,
+                          RuntimeOptions(deadline_ms=1e9), owns_model=False)
+        readings: list = []
+        rt.run(on_reading=readings.append)
+        rt.close()
+        assert not oak.closed
+        cnn = [r for r in readings if not r.flags & (Flags.NO_CONTACT | Flags.INVALID_INPUT)]
+        assert cnn and all(r.raw_force_n == r.raw_force_n for r in cnn)
+        frames = {tf.index: tf.frame for tf in ReplayFolderSource(aurova_dir)}
+        for r in cnn:
+            assert r.raw_force_n == pytest.approx(float(oak.predict_reduced(frames[r.frame_index][None])[0]))
+
+
 # -- NN Archive ----------------------------------------------------------------------------------------
 def test_nn_archive_config_follows_the_manifest(tmp_path):
     b = _bundle(tmp_path)

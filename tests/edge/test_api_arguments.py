@@ -141,6 +141,51 @@ def test_wrong_types_are_type_errors_and_values_out_of_range_value_errors():
         ForceRuntime([_sensor(), _sensor(), _sensor()], object())
 
 
+class _PredictOnly:
+    """A backend written against the old, thin protocol: predict() and needs_depth only."""
+
+    needs_depth = False
+
+    def predict(self, rgb, depth=None):
+        return np.zeros(len(rgb), np.float32)
+
+
+def test_a_model_lacking_a_force_model_member_is_refused_naming_what_is_missing(model):
+    from tactile_force.edge.checks import protocol_members
+    from tactile_force.edge.runtime import ForceModel
+
+    with pytest.raises(ArgumentTypeError, match=r"ForceRuntime\.model=.*_PredictOnly lacks calibration, bundle, "
+                                                r"reduction, rgb_shape, closed, predict_reduced, close \(ForceModel "
+                                                r"declares .*\)") as info:
+        ForceRuntime([_sensor()], _PredictOnly())
+    assert isinstance(info.value, TactileForceError)
+    attrs, methods = protocol_members(ForceModel)
+    assert set(attrs) == {"bundle", "calibration", "reduction", "rgb_shape", "needs_depth", "closed"}
+    assert set(methods) == {"predict", "predict_reduced", "close"}
+    for name in attrs + methods:  # the CPU backend has every member
+        assert hasattr(model, name), name
+
+    class NotCallable(_PredictOnly):
+        bundle = calibration = rgb_shape = None
+        reduction = model.reduction
+        closed = False
+        predict_reduced = close = "not a method"
+
+    with pytest.raises(ArgumentTypeError, match=r"NotCallable lacks predict_reduced, close \("):
+        ForceRuntime([_sensor()], NotCallable())
+
+
+def test_a_depth_factory_making_no_depth_stage_is_refused_at_construction():
+    from tactile_force.edge.scene import shipped_bundles
+
+    if "d" not in shipped_bundles():
+        pytest.skip("no shipped depth bundle")
+    d = OnnxForceModel(shipped_bundles()["d"])
+    with pytest.raises(ArgumentTypeError, match=r"ForceRuntime\.depth_factory\(\)=.*: expected a DepthStage"):
+        ForceRuntime([_sensor()], d, depth_factory=lambda: "a stage")
+    d.close()
+
+
 def test_numpy_numbers_are_numbers_and_bool_is_not_a_count():
     opts = GateOptions(threshold=np.float32(12.5), background_frames=np.int64(3), downscale=np.int32(2))
     assert ContactGate(opts).options.background_frames == 3

@@ -44,3 +44,43 @@ def test_an_rgbmod_runtime_never_loads_depth_synthetic_torch_or_devices(tmp_path
     assert _loaded(mods, "onnxruntime") and _loaded(mods, "tactile_force.edge.runtime.loop")
     for heavy in HEAVY:
         assert not _loaded(mods, heavy), heavy
+
+
+def test_the_bundle_ladder_has_its_own_module_and_its_old_path_warns():
+    import pytest
+    from tactile_force.edge.model import ladder, onnx_model
+
+    for name in ("LadderChoice", "measure_p99_ms", "pick_from_ladder", "choose_bundle"):
+        assert getattr(ladder, name).__module__ == "tactile_force.edge.model.ladder"
+        assert name not in vars(onnx_model)
+        with pytest.warns(DeprecationWarning, match=rf"onnx_model\.{name} moved to tactile_force\.edge\.model\.ladder"):
+            assert getattr(onnx_model, name) is getattr(ladder, name)
+    with pytest.raises(AttributeError, match="no attribute 'nothing_here'"):
+        onnx_model.nothing_here  # noqa: B018
+
+
+def test_only_the_cli_imports_benchmarks():
+    """The robot-side package does not reach into benchmarks/ (a labelled replay lives in the runtime)."""
+    import ast
+    from pathlib import Path
+
+    import tactile_force.edge
+
+    root = Path(tactile_force.edge.__file__).resolve().parent
+    found = []
+    for path in sorted(root.rglob("*.py")):
+        if "cli" in path.relative_to(root).parts[:1]:
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            names = ([a.name for a in node.names] if isinstance(node, ast.Import)
+                     else [node.module or ""] if isinstance(node, ast.ImportFrom) else [])
+            found += [f"{path.relative_to(root)}: {n}" for n in names
+                      if n.split(".")[0] == "benchmarks" or n.startswith("tactile_force.benchmarks")]
+    assert not found
+
+
+def test_the_labelled_replay_is_the_runtime_s():
+    from tactile_force.benchmarks import bench
+    from tactile_force.edge.runtime.replay import replay_readings
+
+    assert bench.replay_readings is replay_readings

@@ -11,7 +11,7 @@ from tactile_force.edge import load_bundle
 from tactile_force.edge.cli import main as cli_main
 from tactile_force.edge.gate.contact_gate import ContactGate
 from tactile_force.edge.model.onnx_model import OnnxForceModel
-from tactile_force.edge.runtime.loop import ForceRuntime, Sensor
+from tactile_force.edge.runtime import ForceRuntime, Sensor
 from tactile_force.edge.sources import ReplayFolderSource
 from tactile_force.edge.synthetic import DatasetOptions, VirtualDigit, VirtualDigitOptions, generate_dataset
 from tactile_force.export import ModelSpec, save_checkpoint

@@ -8,7 +8,7 @@ import pytest
 
 torch = pytest.importorskip("torch", reason="building real bundles needs the 'export' extra (torch)")
 
-from tactile_force.edge.model.onnx_model import choose_bundle, pick_from_ladder  # noqa: E402
+from tactile_force.edge.model.ladder import choose_bundle, pick_from_ladder  # noqa: E402
 from tactile_force.export import ExportOptions, QuantizeOptions, build_model, export_bundle, quantize_bundle  # noqa: E402
 
 

@@ -174,7 +174,7 @@ def test_depth_record_carries_the_grid_and_old_records_mean_full_resolution():
 
 def test_runtime_builds_the_recorded_grid():
     from tactile_force.edge.bundle.manifest import InputKind, InputSpec, Manifest
-    from tactile_force.edge.runtime.loop import build_depth_stage
+    from tactile_force.edge.runtime import build_depth_stage
 
     red = FrameReduction(Reduction.AREA_2X_STEPS, 4)
     m = Manifest("d", "fp32", [InputSpec("depth", InputKind.DEPTH, [-1, 80, 60, 1], colour_order="GRAY",

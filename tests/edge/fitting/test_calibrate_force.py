@@ -23,7 +23,7 @@ from tactile_force.edge.fitting.force_calibration import (
 )
 from tactile_force.edge.gate.contact_gate import ContactGate
 from tactile_force.edge.model.onnx_model import OnnxForceModel
-from tactile_force.edge.runtime.loop import ForceRuntime, Sensor
+from tactile_force.edge.runtime import ForceRuntime, Sensor
 from tactile_force.edge.sources import ReplayFolderSource, load_background
 
 from tests.conftest import shared_data
@@ -219,7 +219,7 @@ def test_a_depth_bundle_is_fitted_on_the_depth_the_runtime_makes(variant, aurova
     """Presses without depth images are accepted; the fit's raw estimates are the runtime's, so the
     calibrated bundle reads on its own fit frames, through the runtime 'run' builds, exactly what
     the fitted map gives (the filt_img_depth fit read RE 0.156 through 'run' against 0.008 in the fit)."""
-    from tactile_force.benchmarks.bench import replay_readings
+    from tactile_force.edge.runtime.replay import replay_readings
     from tactile_force.edge.reading import MAX_VALID_FORCE_N
     from tactile_force.edge.scene import shipped_bundles
 

@@ -190,7 +190,7 @@ def test_manifest_round_trip(rgb_bundle, tmp_path, fitted):
 def _runtime_readings(bundle_path, frames_dir, background):
     from tactile_force.edge.gate.contact_gate import ContactGate
     from tactile_force.edge.model.onnx_model import OnnxForceModel
-    from tactile_force.edge.runtime.loop import ForceRuntime, Sensor
+    from tactile_force.edge.runtime import ForceRuntime, Sensor
     from tactile_force.edge.sources import ReplayFolderSource
 
     gate = ContactGate()
@@ -241,18 +241,15 @@ def test_runtime_without_interval_says_unknown(rgb_bundle, aurova_dir, aurova_ba
 
 
 def test_no_contact_reading_uses_the_gate_closed_bound():
-    from tactile_force.edge.runtime.loop import ForceRuntime
+    from tactile_force.edge.runtime.bounds import bound
 
     iv = fit_interval(*_hetero(np.random.default_rng(5), 200), no_contact_truth=np.r_[np.zeros(80), 0.3, 0.6])
     assert iv.no_contact_bounds() == (0.0, 0.0, IntervalState.KNOWN)  # 90 % of 82 gate-closed frames are 0 N
-    rt = object.__new__(ForceRuntime)
-    rt._interval = iv
     r = ForceReading("s", 0, 0, 0.0, Flags.NO_CONTACT)
-    rt._bound(r)
+    bound(r, iv)
     assert (r.force_low_n, r.force_high_n, r.interval) == (0.0, 0.0, IntervalState.KNOWN)
-    rt._interval = fit_interval(*_hetero(np.random.default_rng(5), 200))  # no gate-closed frames: unknown
     r = ForceReading("s", 0, 0, 0.0, Flags.NO_CONTACT)
-    rt._bound(r)
+    bound(r, fit_interval(*_hetero(np.random.default_rng(5), 200)))  # no gate-closed frames: unknown
     assert r.interval is IntervalState.UNKNOWN and math.isnan(r.force_high_n)
 
 
@@ -261,7 +258,7 @@ def test_frames_read_while_the_background_is_learnt_have_no_known_interval(aurov
     show (here presses of 1.1-7.4 N), their interval is unknown, never [0, the gate-closed bound]."""
     from tactile_force.edge.gate.contact_gate import ContactGate
     from tactile_force.edge.model.onnx_model import OnnxForceModel
-    from tactile_force.edge.runtime.loop import ForceRuntime, RuntimeOptions, Sensor
+    from tactile_force.edge.runtime import ForceRuntime, RuntimeOptions, Sensor
     from tactile_force.edge.scene import default_bundle_path
     from tactile_force.edge.sources import ReplayFolderSource
 

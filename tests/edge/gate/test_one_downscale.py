@@ -15,7 +15,7 @@ from tactile_force.edge.bundle.manifest import FORMAT_VERSION, FrameReduction, R
 from tactile_force.edge.errors import FrameError
 from tactile_force.edge.frames import FRAME_SHAPE
 from tactile_force.edge.gate.reduce import FrameReducer, default_reduction, reduce_frames
-from tactile_force.edge.runtime.loop import ForceRuntime, RuntimeOptions, Sensor
+from tactile_force.edge.runtime import ForceRuntime, RuntimeOptions, Sensor
 from tactile_force.edge.scene import default_bundle_path
 
 from tests.conftest import ListSource
@@ -123,7 +123,11 @@ class _Watch:
         self.model = model
         self.seen: list[tuple[str, np.ndarray]] = []
         self.bundle, self.reduction, self.rgb_shape = model.bundle, model.reduction, model.rgb_shape
-        self.needs_depth = model.needs_depth
+        self.needs_depth, self.calibration = model.needs_depth, model.calibration
+
+    @property
+    def closed(self) -> bool:
+        return self.model.closed
 
     def predict(self, rgb, depth=None):
         self.seen.append(("full", rgb.copy()))  # the runtime hands views of buffers reused next frame

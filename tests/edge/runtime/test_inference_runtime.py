@@ -12,11 +12,11 @@ import pytest
 from tactile_force.edge import BundleError, Flags, FrameError, SourceError, TimedFrame
 from tactile_force.edge.frames import FrameSource
 from tactile_force.edge.gate.contact_gate import ContactGate
+from tactile_force.edge.model.ladder import choose_bundle
 from tactile_force.edge.model.onnx_model import OnnxForceModel
 from tactile_force.edge.outputs import CsvWriter, JsonlWriter
-from tactile_force.edge.runtime.loop import ForceRuntime, RuntimeOptions, Sensor, plan_stages
+from tactile_force.edge.runtime import ForceRuntime, RuntimeOptions, Sensor, plan_stages
 from tactile_force.edge.sources import ReplayFolderSource, load_background
-
 from tests.conftest import FakeClock, expected_force, shared_data
 
 
@@ -258,7 +258,7 @@ def test_corrupt_replay_frames_are_counted_not_passed(tmp_path, aurova_dir):
 
 
 def test_depth_bundle_runs_the_real_depth_stage_with_the_gate_mask(make_bundle, aurova_dir):
-    from tactile_force.edge.runtime.loop import build_depth_stage
+    from tactile_force.edge.runtime import build_depth_stage
     from tactile_force.edge.scene import DepthSettings
 
     mapping = shared_data("aurova_digit_depth_mlp.npz")
@@ -280,7 +280,7 @@ def test_depth_bundle_runs_the_real_depth_stage_with_the_gate_mask(make_bundle, 
 
 def test_depth_bundle_without_mapping_is_a_clear_scene_error():
     from tactile_force.edge import SceneError
-    from tactile_force.edge.runtime.loop import build_depth_stage
+    from tactile_force.edge.runtime import build_depth_stage
     from tactile_force.edge.scene import DepthSettings
 
     with pytest.raises(SceneError, match=r"depth\.mapping: missing; a depth bundle needs the colour->normal \.npz"):

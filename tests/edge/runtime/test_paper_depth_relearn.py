@@ -9,7 +9,7 @@ import textwrap
 import cv2
 import numpy as np
 from tactile_force.edge.reading import Flags
-from tactile_force.edge.runtime.loop import build_depth_stage
+from tactile_force.edge.runtime import build_depth_stage
 from tactile_force.edge.scene import build_scene, load_scene
 
 from tests.conftest import shared_data

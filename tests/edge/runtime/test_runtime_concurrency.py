@@ -15,7 +15,7 @@ from tactile_force.edge import Flags, SourceError, TimedFrame
 from tactile_force.edge.frames import FrameSource
 from tactile_force.edge.gate.contact_gate import ContactGate
 from tactile_force.edge.model.onnx_model import OnnxForceModel
-from tactile_force.edge.runtime.loop import ForceRuntime, RuntimeOptions, Sensor
+from tactile_force.edge.runtime import ForceRuntime, RuntimeOptions, Sensor
 from tactile_force.edge.sources import CameraSource, ReplayFolderSource, load_background
 from tactile_force.edge.synthetic import VirtualDigitSource
 

@@ -17,7 +17,7 @@ pytest.importorskip("cyclonedds", reason="MCAP output serialises CDR with cyclon
 from tactile_force.edge.cli import main as cli_main  # noqa: E402
 from tactile_force.edge.errors import SceneError  # noqa: E402
 from tactile_force.edge.outputs.mcap_log import read_messages  # noqa: E402
-from tactile_force.edge.runtime.loop import frame_sinks  # noqa: E402
+from tactile_force.edge.runtime import frame_sinks  # noqa: E402
 from tactile_force.edge.scene import build_scene, load_scene, parse_scene, scene_from_flags  # noqa: E402
 
 from tests.conftest import shared_data  # noqa: E402

@@ -17,7 +17,7 @@ import pytest
 from tactile_force.edge import ContactGate, OnnxForceModel, load_bundle, shipped_bundles
 from tactile_force.edge.bundle.manifest import Precision, Reduction
 from tactile_force.edge.reading import Flags
-from tactile_force.edge.runtime.loop import ForceRuntime, RuntimeOptions, Sensor
+from tactile_force.edge.runtime import ForceRuntime, RuntimeOptions, Sensor
 
 from tests.conftest import ListSource
 
@@ -92,7 +92,7 @@ def test_stated_error_is_not_loose(contact_pool):
     """The D bundle fed depth images made differently from its training (twice the recorded
     levels per pixel, on the right grid) reads at least 1 N worse than as recorded."""
     from tactile_force.edge.depth import DepthOptions, DepthStage
-    from tactile_force.edge.runtime.loop import ASSETS_DIR
+    from tactile_force.edge.runtime import ASSETS_DIR
 
     path = shipped_bundles()["d"]
     rec = load_bundle(path).manifest.depth

@@ -11,7 +11,8 @@ import pytest
 from tactile_force.edge.bundle.manifest import DepthRecord
 from tactile_force.edge.depth import DepthOptions
 from tactile_force.edge.errors import SceneError
-from tactile_force.edge.runtime.loop import ASSETS_DIR, depth_options_for
+from tactile_force.edge.bundle.manifest import DepthRecord
+from tactile_force.edge.runtime import ASSETS_DIR, depth_options_for
 from tactile_force.edge.scene import DepthSettings, load_scene, parse_scene, scene_to_toml
 
 SENSOR = {"sensor": [{"source": "virtual"}]}

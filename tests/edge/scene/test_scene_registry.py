@@ -14,7 +14,7 @@ import pytest
 from tactile_force.edge.errors import SceneError, SourceError
 from tactile_force.edge.gate.options import GateOptions
 from tactile_force.edge.reading import Flags
-from tactile_force.edge.runtime.loop import ASSETS_DIR
+from tactile_force.edge.runtime import ASSETS_DIR
 from tactile_force.edge.scene import (
     SOURCE_KINDS,
     SensorKeys,

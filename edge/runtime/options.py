@@ -1,0 +1,272 @@
+"""What a :class:`~tactile_force.edge.runtime.loop.ForceRuntime` is built from and reports:
+its options, its sensors, the :class:`ForceModel` protocol a backend satisfies, the sinks it
+writes to, its counters and rolling latency window, and the check of its arguments (made
+once, at construction)."""
+
+from __future__ import annotations
+
+import abc
+import math
+from collections.abc import Callable, Iterable
+from dataclasses import asdict, dataclass, field
+from typing import TYPE_CHECKING, Protocol, cast
+
+import numpy as np
+
+from ..bundle.manifest import FrameReduction
+from ..checks import check_fields, expect, expect_members
+from ..errors import ArgumentTypeError, OptionsError
+from ..frames import FrameSource
+from ..gate.contact_gate import ContactGate
+from ..reading import ForceReading, StageLatency
+from ..typed_json import check
+
+if TYPE_CHECKING:  # the depth code is imported only for depth bundles
+    from ..bundle.force_calibration import ForceCalibration
+    from ..bundle.store import Bundle
+    from ..depth import DepthStage
+
+#: The stages every reading's latency names, in order.
+STAGES = ("source", "gate", "depth", "inference", "total")
+
+
+class ForceModel(Protocol):
+    """What the runtime needs from a backend (:class:`~tactile_force.edge.model.onnx_model.OnnxForceModel`,
+    the OAK backend). :class:`ForceRuntime` refuses a model that lacks one of these members
+    (:class:`~tactile_force.edge.errors.ArgumentTypeError` naming it).
+
+    Attributes
+    ----------
+    bundle : Bundle or None
+        The bundle the model runs: its manifest gives the depth record, the data statistics
+        readings are judged against, the interval and the no-contact reference (None: a model
+        without a bundle; no depth record, no statistics, every interval ``unknown``).
+    calibration : ForceCalibration or None
+        The force calibration applied to the model's output; its ``sensor`` fingerprint is
+        what the runtime compares each sensor with (None: no calibration applied).
+    reduction : FrameReduction
+        How :meth:`predict_reduced` expects frames reduced (``FrameReduction()``, method
+        ``none``: the model reads full frames only).
+    rgb_shape : tuple of int or None
+        (rows, cols, 3) of the RGB images :meth:`predict_reduced` reads; None for a model
+        without an RGB input.
+    needs_depth : bool
+        The model reads depth images (the runtime builds one depth stage per sensor).
+    closed : bool
+        True after :meth:`close` (a closed model is refused).
+    """
+
+    calibration: ForceCalibration | None
+
+    @property
+    def bundle(self) -> Bundle | None: ...
+
+    @property
+    def reduction(self) -> FrameReduction: ...
+
+    @property
+    def rgb_shape(self) -> tuple[int, int, int] | None: ...
+
+    @property
+    def needs_depth(self) -> bool: ...
+
+    @property
+    def closed(self) -> bool: ...
+
+    def predict(self, rgb: np.ndarray | None, depth: np.ndarray | None = None) -> np.ndarray:
+        """Forces in N, (N,) float32, for full-resolution frames (N, 320, 240, 3) uint8 BGR and,
+        for depth models, depth images (N, rows, cols, 1) uint8; N is 1 or 2."""
+        ...
+
+    def predict_reduced(self, rgb: np.ndarray | None, depth: np.ndarray | None = None) -> np.ndarray:
+        """As :meth:`predict`, for images already reduced by :attr:`reduction` (the runtime
+        hands it the contact gate's reduced image, so each frame is downscaled once)."""
+        ...
+
+    def close(self) -> None:
+        """Release the session / device (the runtime calls it from :meth:`ForceRuntime.close`)."""
+        ...
+
+
+class ForceModelBase(abc.ABC):
+    """The :class:`ForceModel` members a simple backend does not need to write: it carries no
+    bundle, applies no force calibration, reads full frames (``reduction`` none, so
+    :meth:`predict_reduced` is :meth:`predict`) and holds nothing to release. A subclass
+    writes ``predict`` and ``needs_depth`` (and overrides ``close`` / ``closed`` together
+    when it holds a session or a device).
+
+    Examples
+    --------
+    >>> class Constant(ForceModelBase):
+    ...     needs_depth = False
+    ...     def predict(self, rgb, depth=None):
+    ...         return np.full(len(rgb), 5.0, np.float32)
+    """
+
+    bundle: Bundle | None = None
+    calibration: ForceCalibration | None = None
+    reduction: FrameReduction = FrameReduction()
+    rgb_shape: tuple[int, int, int] | None = None
+    closed: bool = False
+
+    @abc.abstractmethod
+    def predict(self, rgb: np.ndarray | None, depth: np.ndarray | None = None) -> np.ndarray:
+        """Forces in N, (N,) float32 (see :meth:`ForceModel.predict`); a subclass writes it."""
+
+    def predict_reduced(self, rgb: np.ndarray | None, depth: np.ndarray | None = None) -> np.ndarray:
+        """:meth:`predict`: with ``reduction`` none the reduced images are the frames."""
+        return self.predict(rgb, depth)
+
+    def close(self) -> None:
+        """Nothing to release (a subclass holding a session or a device overrides it and ``closed``)."""
+        return None
+
+
+class ReadingSink(Protocol):
+    """Where readings go (CSV, JSONL, stdout, MCAP, ROS 2 writers)."""
+
+    def write(self, reading: ForceReading) -> None: ...
+
+    def close(self) -> None: ...
+
+
+class FrameSink(Protocol):
+    """A sink that also logs frames and/or contact masks (the MCAP writer): ``frames`` /
+    ``mask`` say which it wants; :meth:`ForceRuntime.run` hands them only then."""
+
+    frames: bool
+    mask: bool
+
+    def write_frame(self, sensor: str, timestamp_ns: int, frame_bgr: np.ndarray | None,
+                    mask: np.ndarray | None = None) -> None: ...
+
+
+def frame_sinks(sinks: Iterable[object]) -> list[FrameSink]:
+    """The sinks with a ``write_frame`` that want frames or masks (``frames`` / ``mask`` true)."""
+    return [cast(FrameSink, s) for s in sinks if callable(getattr(s, "write_frame", None))
+            and (getattr(s, "frames", False) or getattr(s, "mask", False))]
+
+
+@dataclass
+class RuntimeOptions:
+    """deadline_ms: per-frame budget from frame arrival to reading (60 fps -> 16.7 ms).
+    threads: ORT intra-op threads (used when the runtime loads the model).
+    report_stale: emit a ``stale`` reading for every superseded frame.
+    latency_window: frames kept for the rolling p50/p99.
+    grabbers: read each sensor in its own grabber thread (None: when there are two sensors;
+    one sensor is read in the loop's thread, the lowest-latency path).
+
+    Raises :class:`OptionsError` naming the field when deadline_ms is not a finite number > 0,
+    threads < 1 or latency_window < 1, :class:`ArgumentTypeError` for a value of another type."""
+
+    deadline_ms: float = field(default=16.7, metadata=check(
+        gt=0, expected="a finite number of milliseconds > 0 (e.g. 16.7 for 60 fps)"))
+    threads: int = field(default=1, metadata=check(ge=1))
+    report_stale: bool = True
+    latency_window: int = field(default=600, metadata=check(ge=1))
+    grabbers: bool | None = None
+
+    def __post_init__(self) -> None:
+        check_fields(self)
+
+
+@dataclass
+class Sensor:
+    """One tactile sensor: its frame source and its contact gate; ``depth`` is the depth
+    stage the runtime built for it (None for RGB-only bundles)."""
+
+    name: str
+    source: FrameSource
+    gate: ContactGate
+    depth: DepthStage | None = None
+    alive: bool = True
+    error: str = ""
+
+    def __post_init__(self) -> None:
+        expect(self.name, str, "Sensor.name", "a non-empty string (the sensor's name in readings)", nonempty=True)
+        if not callable(getattr(self.source, "read", None)):
+            raise ArgumentTypeError(f"Sensor.source={self.source!r}: expected a frame source (an object with read() "
+                                    f"and close(), e.g. ReplayFolderSource(folder)), got {type(self.source).__name__}")
+        expect(self.gate, ContactGate, "Sensor.gate", "a ContactGate (one per sensor)")
+
+
+@dataclass
+class RuntimeStats:
+    """Counters over a run; latency_ms[stage] = {'p50': ms, 'p99': ms}."""
+
+    readings: int = 0
+    processed: int = 0
+    inferred: int = 0
+    no_contact: int = 0
+    stale: int = 0
+    late: int = 0
+    invalid: int = 0
+    source_errors: int = 0
+    background_mismatch: int = 0
+    out_of_distribution: int = 0
+    latency_ms: dict[str, dict[str, float]] = field(default_factory=dict)
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+class LatencyWindow:
+    """Rolling per-stage latencies (ms) in a preallocated ring buffer."""
+
+    def __init__(self, size: int) -> None:
+        self._buf = np.full((max(1, size), len(STAGES)), np.nan, np.float64)
+        self._i = 0
+        self._n = 0
+
+    def add(self, lat: StageLatency) -> None:
+        row = self._buf[self._i]
+        row[0], row[1], row[2] = lat.source_ms, lat.gate_ms, lat.depth_ms
+        row[3], row[4] = lat.inference_ms, lat.total_ms
+        self._i = (self._i + 1) % len(self._buf)
+        self._n = min(self._n + 1, len(self._buf))
+
+    def percentiles(self) -> dict[str, dict[str, float]]:
+        if self._n == 0:
+            return {s: {"p50": math.nan, "p99": math.nan} for s in STAGES}
+        p = np.percentile(self._buf[: self._n], [50, 99], axis=0)
+        return {s: {"p50": float(p[0, k]), "p99": float(p[1, k])} for k, s in enumerate(STAGES)}
+
+
+def shares_reduction(gate: ContactGate, model: ForceModel) -> bool:
+    """True when ``model`` reads images reduced exactly as ``gate`` reduces frames (its
+    ``reduction`` equals the gate's, not ``none``) and has an RGB input: then the runtime
+    hands the gate's image to ``predict_reduced`` and each frame is downscaled once."""
+    red = model.reduction
+    return model.rgb_shape is not None and red.factor > 1 and red == gate.reduction
+
+
+def check_runtime_args(sensors: object, model: object, options: object, clock: object, depth_factory: object,
+                       backend: object, owns_model: object) -> None:
+    """The arguments of :class:`ForceRuntime`, checked once.
+
+    Raises
+    ------
+    ArgumentTypeError
+        A wrong type, or a model that lacks a :class:`ForceModel` member (the message names
+        every missing member).
+    OptionsError
+        Not 1 or 2 sensors.
+    """
+    if isinstance(sensors, Sensor):
+        raise ArgumentTypeError("ForceRuntime.sensors: got one Sensor; expected a list of 1 or 2 Sensor "
+                                "(one per finger): pass [sensor]")
+    expect(sensors, (list, tuple), "ForceRuntime.sensors", "a list of 1 or 2 Sensor (one per finger)")
+    assert isinstance(sensors, (list, tuple))
+    if not 1 <= len(sensors) <= 2:
+        raise OptionsError(f"ForceRuntime.sensors: {len(sensors)} sensors; expected 1 or 2 (one per finger)")
+    for i, s in enumerate(sensors):
+        expect(s, Sensor, f"ForceRuntime.sensors[{i}]", "a Sensor(name, source, gate)")
+    expect_members(model, ForceModel, "ForceRuntime.model",
+                   "a force model with predict() and the other ForceModel members (e.g. OnnxForceModel(bundle); "
+                   "a backend of your own can subclass ForceModelBase for the members it does not need)")
+    expect(options, (RuntimeOptions, type(None)), "ForceRuntime.options", "a RuntimeOptions or None (the defaults)")
+    expect(clock, Callable, "ForceRuntime.clock", "a callable returning monotonic ns (e.g. time.monotonic_ns)")
+    expect(depth_factory, (Callable, type(None)), "ForceRuntime.depth_factory", "a callable making a depth stage, "
+                                                                                 "or None (the default)")
+    expect(backend, str, "ForceRuntime.backend", "a backend name such as 'cpu'", nonempty=True)
+    expect(owns_model, bool, "ForceRuntime.owns_model")
