@@ -87,6 +87,7 @@ def test_compress_frames_from_a_labelled_folder_are_judged_as_labelled_data(tmp_
 
 
 def test_quantize_calibration_refuses_a_labelled_set_with_a_grey_frame(tmp_path):
+    pytest.importorskip("torch", reason="tactile_force.export needs the export extra (torch)")
     from tactile_force.export.calibration import CalibrationData, CalibrationError
 
     root = _dataset_with(tmp_path / "ds", "grey", n=6)
