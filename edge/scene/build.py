@@ -149,8 +149,8 @@ def build_scene(scene: Scene, clock: Clock | None = None, warn: Callable[[str], 
     (default: added to the notes of the result, see :class:`LearningWatch`)."""
     import time
 
-    from ..runtime.depth_factory import build_depth_stage
     from ..runtime import ForceRuntime
+    from ..runtime.depth_factory import build_depth_stage
     from ..runtime.options import RuntimeOptions, Sensor
     from ..sources import load_background
 
