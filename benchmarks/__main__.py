@@ -1,7 +1,6 @@
 """One command for every benchmark page.
 
-    python -m benchmarks latency                      # latency matrix -> out/benchmarks/latency.md
-    python -m benchmarks all --out docs/benchmarks    # latency, error, quant, stability, into the docs
+    python -m benchmarks all --out docs/benchmarks    # quant, stability, into the docs
     python -m benchmarks all --quick                  # smoke run (never into the docs)
     python -m benchmarks robustness --out docs        # bad inputs and faults, counted -> docs/robustness.md
     python -m benchmarks trust --out docs/benchmarks  # frames that cannot be judged, counted -> trust.md
@@ -36,7 +35,7 @@ for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 from .harness.paths import repo_root  # noqa: E402
 
-TASKS = ("latency", "error", "quant", "stability", "all")
+TASKS = ("quant", "stability", "all")
 
 
 def docs_dir() -> Path | None:
@@ -123,15 +122,7 @@ def _main(argv: list[str] | None = None) -> int:
         return 0
     todo = TASKS[:-1] if args.what == "all" else [args.what]
     for t in todo:
-        if t == "latency":
-            from .latency import latency_page
-
-            _write("latency.md", latency_page(args, argv), args.out)
-        elif t == "error":
-            from .error_vs_runtime import run as run_error
-
-            run_error(args, argv)
-        elif t == "quant":
+        if t == "quant":
             from .quantization import run as run_quant
 
             run_quant(args, argv)

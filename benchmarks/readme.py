@@ -26,10 +26,10 @@ PAGES = (
     ("latency.md", "Latency per stage through ForceRuntime for every variant, precision, size and thread count; "
                    "PyTorch eager, onnxruntime and OpenVINO side by side; two sensors; the demo's late readings; "
                    "masked depth evaluation; the gate's cost",
-     "python -m benchmarks latency --out docs/benchmarks"),
+     ""),
     ("error_vs_runtime.md", "Error (RE / MAE, per 1 N bin; synthetic held-out indenters and real AUROVA frames) "
                             "against p50 / p99 of every trained bundle (+ error_vs_runtime.png, the Pareto plot)",
-     "python -m benchmarks error --out docs/benchmarks"),
+     ""),
     ("stability.md", "Stiff and extreme cases: non-finite outputs, flags, monotone sweeps, int8 vs fp32",
      "python -m benchmarks stability --out docs/benchmarks"),
     ("one_downscale.md", "One downscale per frame: runtime total and gate against a bare onnxruntime session on "

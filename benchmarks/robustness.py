@@ -1044,220 +1044,25 @@ def failures(tallies: list[Tally]) -> list[str]:
 
 
 # =============================================================================== the page
-NOTES = f"""Every case goes through the public API or the CLI in-process, as a user would: generated
-cases come from the hypothesis strategies in `benchmarks/robustness.py` (the same ones
-`tests/robustness/` runs, derandomized here so the counts repeat), the fault cases are fixed
-lists. Columns: **accepted** valid input taken with the right result; **clear error** bad input
-refused with a `TactileForceError` (exit 1/2 on the CLI) whose message names the input;
-**valid refused** a false alarm; **traceback** any other exception type, a CLI traceback or a
-wrong exit code; **silent wrong** bad input accepted or a wrong value returned; **hang** no
-answer within 60 s (20 s for a vanished replay); **data lost** a complete sample gone after a
-fault. A case counts once, under the worst thing any reader did with it.
-
-Rules the counts are judged by (docs match code: `edge/data/labels.py`, `export/checkpoint.py`):
-* a force label is UTF-8 text whose first non-blank line starts with a plain decimal number,
-  finite, 0 <= F <= {MAX_FORCE_N:g} N (0 N = no contact; the bound is ten times the paper's
-  0-20 N range and 4.5 times the largest real grasp in the shared data, 44.5 N: a larger value
-  is a unit error such as grams written as newtons). The dataset reader and `quantize --calib`
-  refuse anything else with a `LabelError` naming the file; the replay source logs one warning
-  per bad label file and replays the frame with `truth_n = None` (`meta['label_error']`);
-  `record` skips scale readings outside the range ("force outside the label range").
-* `meta.jsonl`: one JSON object with an integer `"id" >= 0` per line, else an error naming the
-  file and the line (a cut-short last line says to run `tactile-force record --repair DIR`).
-* checkpoint metadata (`"tactile_force"` key): a dict with text keys; `variant` a known
-  variant, `width` in (0, 4], `input_scale` in (0, 1]; every other value text, a finite
-  number, a boolean, None or lists/dicts of those. Checked when the file is loaded, before
-  any export work.
-* a manifest that does not fit its graph (the MUST-REFUSE cases: changed `sha256`, `variant`,
-  `onnx_file`, `inputs`, `output`, `format_version`) must be refused by `load_bundle` or, at
-  the latest, by `OnnxForceModel` and `bundle verify`; any other mutation may load or be
-  refused, but never with another exception type.
-
-Inputs, presses, depth and MCAP cases (`benchmarks/robustness_inputs.py`): every writing verb aimed at its own
-inputs (`--out` = the folder holding the source bundle or checkpoint, = the presses folder, =
-the source itself, inside it; `--force` included) must refuse with exit 2 and leave every input
-byte for byte (else **data lost**); an existing output is replaced only with `--force`; a FIFO
-as `--background` or label must be refused at once (else **hang**, 20 s). Labelled presses:
-the same frame twice, `01500.png` beside `1500.png`, a `.jpg` press, labels with a decimal
-comma or a unit must be refused naming the files; labels ten times too large must be warned
-about. calibrate-depth: a radius or scale that is 0, negative or not finite, and a 10x (or
-0.1x) wrong scale, on both shared ball-press sets, must exit 2 naming the flag. MCAP: a real
-`tactile-force run --out r.csv --out r.mcap` (replay at 20 fps) stopped after 12 readings by
-SIGTERM, SIGINT or kill -9; `mcap.reader.make_reader(f).iter_messages()` and
-`NonSeekingReader(f).iter_messages()` must return every reading the CSV holds (kill -9: at
-most the one in flight fewer) and SIGTERM / SIGINT must leave a finalized file (a summary).
-
-Fault cases: `kill -9` of a recording (a subprocess, `tests/robustness/record_kill_worker.py`)
-at each write phase of a sample (image temp file, image renamed, half a meta line, meta line,
-label temp file, label renamed), then `record` resumes: every complete sample must read and the
-new sample follows them. `meta.jsonl` cut at every byte of its last line: the reader names
-file and line, `tactile-force record --repair DIR` (no hardware) keeps all samples. Disk full:
-`tactile-force record` (DIGIT and HID scale faked at the hardware boundary) on a small real
-filesystem until it is full: exit 1, the summary printed, every sample written readable, no
-temp file left. Replay folder deleted mid-run, unpaced and paced: the next read raises
-`SourceError` ("disappeared"); nothing is counted as corrupt frames.
-
-The verbs' promises (`benchmarks/robustness_verbs.py`; inputs: 12 labelled pressed frames from
-`synth`, the shipped no-contact image, a copy of the default bundle and, for `study` and
-`compress`, a tiny random-weight model (an fp32 bundle, a checkpoint); without torch those
-cases are not run and the category says so). In-process cases answer within 180 s, signalled
-ones stop within 120 s (else **hang**).
-* Result folders, for `bench`, `study`, `synth` and `demo`: `--out` holding the user's own files
-  (with and without `--force`), the verb's earlier result with a user's file added (`--force`),
-  `--out` = an input or inside one (the bundle, the `--data` folder; the `--background` file or
-  the folder holding it; `--force` with =), the same command twice without `--force`: exit 2
-  naming `--out`, every byte of the user's files and inputs kept (else **data lost**), no hidden
-  staging folder left beside `--out` (else **silent wrong**). `--force` over the verb's own
-  earlier result: a complete run that replaces the folder whole, its record listing every file.
-  A plot drawn beside an output (`calibrate-force`'s `<out>_calibration.png`, `run --out r.csv`'s
-  `r_force_vs_time.png`) never replaces the user's file of that name: exit 2 naming it, or no plot.
-* Interruption: a subprocess sent SIGINT or SIGTERM one second after it is at work (`bench`,
-  `study`, `synth`, `demo`: SIGINT into a new `--out`, SIGTERM with `--force` over an earlier
-  result; `run` replaying at `--fps 20`; `compress`): exit 130 / 143 (or death by the signal) and
-  no traceback; `--out` absent, or the earlier result byte for byte (else **data lost**); no
-  hidden staging left; `run`'s CSV holds only whole rows; `compress` keeps `work/` (a rerun
-  resumes) but no `bundle/` or `compress.json` of the unfinished run. Exit 0 is **silent wrong**.
-* Statistics floor: `bench --frames N` and `study --frames N` for N = 1, 5, 50, 99 exit 1 with no
-  verdict (bench `TOO_FEW_READINGS`, study recommends nothing) and say "too few readings" on the
-  terminal and in the report (a PASS or a recommendation is **silent wrong**); N = 100 gives a
-  verdict (none is **valid refused**).
-* Labelled data judged before work: one of the 12 frames grayscale, RGBA, 16-bit, 160x120,
-  480x640, a dangling symlink or a zero-byte file: `bench --data`, `study --data`,
-  `calibrate-force --data` and `run --source` exit 2 naming the file and write no output (a
-  refusal after an output was written is a **traceback**: not judged before work). A 240x320
-  landscape frame, which the replay source turns upright, may be taken or refused naming it.
-* Python API argument types: `ForceRuntime(model=None)`, `ForceRuntime(sensors=<a Sensor>)`,
-  `ForceRuntime(sensors=['left'])`, `ForceRuntime(options=GateOptions())`,
-  `Sensor(source="folder")`, `Sensor(gate=GateOptions())`, `OnnxForceModel(threads="2")`,
-  `OnnxForceModel(None)`, `ContactGate("x")`, every field of `GateOptions` and `RuntimeOptions`
-  given `"x"`, and generated wrong-typed values for those fields (text, None, lists, dicts,
-  bytes, booleans for numbers, non-integral floats for integers, numbers for booleans): a
-  `TactileForceError` or `TypeError` at construction whose message names the parameter
-  (accepted is **silent wrong**; another exception, or a message not naming it, **traceback**).
-  A right-typed value for each field (numpy scalars too) is accepted.
-* Honest states: `bundle verify` on a copy of the default bundle (int8-static, input scale
-  0.25) or of the tiny fp32 bundle whose `model.json` claims another `precision` or
-  `architecture.input_scale` (the graph's sha256 still matches) exits 1 naming the field or the
-  claim (exit 0 is **silent wrong**); unedited copies exit 0. A replay of pressed frames without
-  a background (`run --source`, and a scene with `gate.background_frames = 9`): every reading made
-  while the background is learnt has interval `unknown` and no bounds. `scene show` on a scene
-  `run` refuses at once (an unset `$VAR` in an output or replay path, an existing output, an
-  output inside the replay folder or equal to the sensor's background, a camera that is not
-  there): both exit 2 naming the problem and `run` changes nothing; `scene show` exit 0 is
-  **silent wrong**."""
-
-#: Findings at commit 9ed225d -> the tests that fail there and pass now.
-COVERAGE = [
-    ("Non-UTF-8 label kills replay / dataset reader / `quantize --calib`",
-     "tests/robustness/test_labels.py::test_every_reader_agrees_on_every_label, "
-     "::test_dataset_reader_and_calib_refuse_a_non_utf8_label, "
-     "::test_replay_warns_once_per_bad_label_and_keeps_running"),
-    ("Truncated / binary `meta.jsonl` without the file name",
-     "tests/robustness/test_labels.py::test_truncated_or_binary_meta_names_file_and_line, "
-     "::test_meta_jsonl_loads_or_names_file_and_line"),
-    ("`record` resumes onto a truncated last meta line",
-     "tests/robustness/test_record_faults.py::test_resume_repairs_a_truncated_last_line_instead_of_appending_to_it, "
-     "::test_kill_9_at_each_write_phase_loses_no_complete_sample, ::test_repair_without_hardware"),
-    ("Bundle `--force` replace not atomic; `.partial` folders left (lead)",
-     "tests/edge/bundle/test_bundle_writes.py::test_kill_9_at_every_write_phase_leaves_a_complete_bundle, "
-     "::test_a_live_writer_partial_is_not_stale"),
-    ("Graph does not fit the frame contract; `bundle verify` tracebacks / OK for `variant: d`; "
-     "`bundle show` KeyError on partial sections; `onnx_file` outside the bundle (lead)",
-     "tests/edge/bundle/test_bundle_writes.py::test_graphs_that_break_the_frame_contract_are_refused_at_load, "
-     "tests/edge/bundle/test_manifest.py::test_bundle_verify_refuses_a_variant_the_graph_does_not_have, "
-     "::test_onnx_file_outside_the_bundle_is_never_followed, ::test_damaged_manifest_files_name_the_file; "
-     "tests/robustness/test_manifests.py (property test + the hand-picked manifests through load, verify and show)"),
-    ("Disk full during `record`: raw OSError, summary lost",
-     "tests/robustness/test_record_faults.py::test_disk_full_stops_cleanly_with_the_summary"),
-    ("Scene values give TypeError / ZeroDivisionError / ValueError; `scene show` too lenient (B1)",
-     "tests/edge/scene/test_scene_validation.py::test_bad_scene_values_are_named_with_key_and_file, "
-     "::test_bad_scenes_exit_2_without_traceback, ::test_csv_path_that_is_a_folder_fails_before_the_model_is_loaded, "
-     "::test_scene_show_exits_2_when_a_listed_file_is_missing; tests/robustness/test_scenes.py (property test)"),
-    ("Runs producing nothing exit 0 (VGA video, all-corrupt replay) (B1)",
-     "tests/edge/scene/test_scene_validation.py::test_vga_video_exits_2_with_a_message, "
-     "::test_all_corrupt_replay_folder_exits_2_with_a_message; "
-     "tests/robustness/test_video_source.py::test_vga_video_is_refused_naming_its_size"),
-    ("Replay folder deleted mid-run: no error, 938 frames 'corrupt'",
-     "tests/robustness/test_replay_vanish.py::test_vanished_replay_folder_is_a_clear_error, "
-     "::test_no_frame_counted_corrupt_after_the_folder_is_gone"),
-    ("Checkpoint metadata `width: \"abc\"`, a list, a tensor in `note`",
-     "tests/robustness/test_checkpoint_meta.py::test_metadata_is_accepted_or_refused_naming_the_key, "
-     "::test_bad_metadata_is_refused_before_any_export_work, ::test_list_metadata_is_named"),
-    ("Replay silently turns bad labels into `truth = None`; -5 N and 1e308 N accepted",
-     "tests/robustness/test_labels.py::test_every_reader_agrees_on_every_label, "
-     "::test_bad_label_messages_name_the_file_and_the_problem, "
-     "::test_replay_warns_once_per_bad_label_and_keeps_running"),
-    ("`export --opset 99` records 99; `quantize --max-frames 0` = unlimited; colour PNGs for a D bundle",
-     "tests/robustness/test_cli_args.py::test_bad_arguments_exit_2_naming_the_flag, "
-     "::test_max_frames_zero_is_not_unlimited, ::test_calibration_frames_with_the_wrong_channels_are_refused"),
-    ("`demo --grasps 0` / `--threads 0` (B1); `synth --n 0`, `synth --out FILE`; exposure reads a "
-     "checkerboard as all-white",
-     "tests/edge/scene/test_scene_validation.py::test_bad_flags_exit_2_with_a_clear_line (B1); "
-     "tests/robustness/test_cli_args.py::test_bad_arguments_exit_2_naming_the_flag; "
-     "tests/robustness/test_frames.py::test_checkerboard_is_not_all_white, "
-     "::test_exposure_verdict_matches_the_whole_frame"),
-]
+#: the line between the generated counts and the page's hand-kept rules and findings
+MARK = "<!-- Above: written by `python -m benchmarks robustness`. Below: the rules and findings, kept by hand. -->"
 
 
-#: Findings at commit c1733e6 -> the tests that fail there and pass now.
-COVERAGE_19 = [
-    ("Labels with a decimal comma (`1,08` read as 1.0 N) accepted by calibrate-force",
-     "tests/robustness/test_labels_grammar.py::test_decimal_comma_and_units_are_errors_naming_the_file, "
-     "::test_calibrate_force_refuses_decimal_comma_labels"),
-    ("`calibrate-depth --ball-radius-mm 0 / -3`, `--px-per-mm 0` exit 0; a 10x wrong scale reports a lower error",
-     "tests/edge/depth/test_calibrate_depth_args.py::test_impossible_radius_or_scale_exits_2_and_writes_nothing, "
-     "::test_a_ten_times_wrong_scale_is_refused_naming_the_flags"),
-    ("calibrate-force / export / quantize `--out` onto or around their inputs with `--force` destroyed them",
-     "tests/robustness/test_inputs_never_destroyed.py::"
-     "test_calibrate_force_out_holding_the_source_is_refused_with_force, "
-     "::test_calibrate_force_out_onto_the_presses_is_refused_with_force, "
-     "::test_export_out_holding_the_checkpoint_is_refused_with_force, "
-     "::test_quantize_onto_its_source_is_refused_with_force, "
-     "::test_force_never_replaces_a_folder_that_is_not_a_bundle"),
-    ("`run --out` overwrites an existing CSV or MCAP without `--force`",
-     "tests/robustness/test_inputs_never_destroyed.py::test_run_out_refuses_an_existing_file_without_force"),
-    ("After SIGTERM the MCAP log is unfinalized (0 messages); after kill -9 the library's reader reads 0",
-     "tests/robustness/test_mcap_killed.py::test_sigterm_and_sigint_finalize_the_log, "
-     "::test_kill_9_leaves_every_written_reading_to_the_library_readers"),
-    ("A FIFO as `--background` or as a label file blocks forever",
-     "tests/robustness/test_inputs_never_destroyed.py::test_fifo_background_is_refused_at_once, "
-     "tests/robustness/test_labels_grammar.py::test_fifo_label_is_refused_without_blocking"),
-    ("Duplicated presses give leave-one-out RE 0.001; `01500.png` beside `1500.png`; a `.jpg` press skipped",
-     "tests/robustness/test_labels_grammar.py::test_duplicated_presses_are_refused_naming_both_files, "
-     "::test_zero_padded_name_beside_the_plain_one_is_an_error_naming_both, "
-     "::test_a_press_that_would_be_skipped_is_an_error_naming_it"),
-    ("`--budget-ms nan`; labels x10 without a warning; a 640x480 `--background`; a D bundle with `--source` "
-     "and no mapping flag; `--max-frames 0`; scene `topic = \"/a//b\"` passes `scene show`",
-     "tests/robustness/test_smaller_items.py (every test), "
-     "tests/robustness/test_labels_grammar.py::test_labels_ten_times_too_large_give_a_warning_naming_the_cause, "
-     "tests/edge/scene/test_scene_validation.py::test_bad_flags_exit_2_with_a_clear_line"),
-]
-
-def page(tallies: list[Tally], command: str, examples: int) -> str:
+def page(tallies: list[Tally], command: str, examples: int, kept: str = "") -> str:
+    """The page: command, commit, machine, the counts and any case that went wrong, then
+    ``kept`` (the page's hand-kept rules and findings, from :data:`MARK` on)."""
     from .harness.machine import describe_machine, header
 
     disk = next((t.note for t in tallies if t.note), "")
     bad = failures(tallies)
-    lines = [header("Robustness: bad inputs and faults", command, describe_machine(), NOTES),
+    lines = [header("Robustness: bad inputs and faults", command, describe_machine(),
+                    "Every case goes through the public API or the CLI, as a user would; the rules each "
+                    "category is judged by are below the table."),
              f"{examples} generated cases per generated category.", "", table(tallies), "",
              f"Disk full was made with: {disk}.", ""]
     if bad:
         lines += ["## Cases that went wrong", ""] + [f"* {b}" for b in bad] + [""]
-    lines += ["## Findings at commit 9ed225d and the tests that pin them", "",
-              "Each test fails on commit 9ed225d's behaviour and passes now; (lead) and (B1) name the "
-              "helpers whose code and tests cover that part.", "",
-              "| finding at 9ed225d | tests |", "|---|---|"]
-    lines += [f"| {a} | {b} |" for a, b in COVERAGE]
-    lines += ["", "## Findings at commit c1733e6 and the tests that pin them", "",
-              "Each test fails on commit c1733e6 (checked by running it against that commit's package: "
-              "`benchmarks.robustness.use_package_root`) and passes now. The other findings of that review "
-              "(shared models, data statistics, sensor fingerprint, background contact check, "
-              "bundle verify, compress decisions) are pinned by their own tests.", "",
-              "| finding at c1733e6 | tests |", "|---|---|"]
-    lines += [f"| {a} | {b} |" for a, b in COVERAGE_19]
-    lines += ["", "The suite itself: `python -m pytest -q tests/robustness` (bounded hypothesis runs, "
-              "30 examples per property test)."]
-    return "\n".join(lines) + "\n"
+    return "\n".join(lines) + "\n" + (kept or MARK + "\n")
 
 
 def run(args, argv: list[str]) -> int:
@@ -1278,6 +1083,8 @@ def run(args, argv: list[str]) -> int:
         print(f"  ! {b}")
     out.mkdir(parents=True, exist_ok=True)
     dest = out / "robustness.md"
-    dest.write_text(page(tallies, command_line(argv), examples))
+    kept = DOCS.read_text() if DOCS.is_file() else ""
+    kept = kept[kept.index(MARK):] if MARK in kept else ""
+    dest.write_text(page(tallies, command_line(argv), examples, kept))
     print(f"wrote {dest}")
     return 1 if failures(tallies) else 0

@@ -12,9 +12,9 @@ load), so the runtime's overhead over bare inference is a measured figure. p50 /
 over ``frames`` readings after ``warmup``.
 
 A case runs its bundle (``LatencyCase.bundle``) in onnxruntime unless a :class:`Predictor`
-is given: the docs pages build the other engines (PyTorch eager, OpenVINO, the polynomial
-baseline) and the random-weight bundles in :mod:`benchmarks.latency`, outside this module,
-which needs no torch.
+is given (the engine matrix of docs/benchmarks/latency.md built PyTorch eager, OpenVINO and the
+polynomial baseline that way; that page's code was retired at commit 053d257). This module
+needs no torch.
 """
 
 from __future__ import annotations
@@ -193,7 +193,7 @@ def measure(case: LatencyCase, pool: FramePool | None = None, clock: Clock = tim
         The depth-stage factory for depth variants (default: the virtual DIGIT's
         calibration, :func:`~.frames.virtual_depth_stage`).
     predictor : Predictor, optional
-        The model the case runs (the docs pages' other engines).
+        The model the case runs (another engine than onnxruntime).
     """
     from tactile_force.edge import ContactGate
     from tactile_force.edge.reading import Flags
@@ -202,7 +202,7 @@ def measure(case: LatencyCase, pool: FramePool | None = None, clock: Clock = tim
     if case.engine not in ENGINES:
         raise ValueError(f"LatencyCase.engine={case.engine!r}; expected one of {ENGINES}")
     if predictor is None and case.engine != "onnxruntime":
-        raise ValueError(f"LatencyCase.engine={case.engine!r} needs a predictor (benchmarks.latency builds it)")
+        raise ValueError(f"LatencyCase.engine={case.engine!r} needs a predictor (a Predictor of that engine)")
     pool = pool or frame_pool()
     cv2.setNumThreads(case.threads)
     p = predictor or bundle_predictor(case)

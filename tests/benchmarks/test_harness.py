@@ -47,7 +47,7 @@ def test_quick_never_writes_the_docs_and_default_out_is_not_docs(capsys):
     docs = cli.docs_dir()
     assert docs is not None  # tests run from the clone
     before = {p: p.stat().st_mtime_ns for p in docs.glob("*")} if docs.is_dir() else {}
-    assert cli.main(["latency", "--quick", "--out", str(docs)]) == 2
+    assert cli.main(["stability", "--quick", "--out", str(docs)]) == 2
     assert "never go into the docs" in capsys.readouterr().err
     assert cli.main(["trust", "--quick", "--out", str(docs / "sub")]) == 2
     after = {p: p.stat().st_mtime_ns for p in docs.glob("*")} if docs.is_dir() else {}
