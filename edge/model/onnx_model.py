@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import os
 import threading
-import warnings
 
 import numpy as np
 
@@ -274,18 +273,3 @@ def check_graph_contract(bundle: Bundle, session) -> None:
         raise BundleError(f"{where}: manifest output {m.output.name!r} is not a graph output ({sorted(outs)})")
     if out.type not in ("tensor(float)", "tensor(float16)"):
         raise BundleError(f"{where}: graph output {m.output.name!r} is {out.type}; expected float32 newtons")
-
-
-_LADDER = ("LadderChoice", "measure_p99_ms", "pick_from_ladder", "choose_bundle")
-
-
-def __getattr__(name: str) -> object:
-    """The bundle ladder's names moved to :mod:`.ladder`; importing them from here still works,
-    with a DeprecationWarning naming the new place."""
-    if name in _LADDER:
-        from . import ladder
-
-        warnings.warn(f"{__name__}.{name} moved to {ladder.__name__}; import it from there",
-                      DeprecationWarning, stacklevel=2)
-        return getattr(ladder, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
