@@ -57,3 +57,15 @@ def test_the_readme_test_command_is_what_ci_runs():
     for torch in re.findall(r"`(pip install torch==[0-9.]+)`", readme):
         assert torch in ci, f"README.md says CI runs '{torch}'; .ci/run's job 3 does not"
 
+
+def test_a_missing_shared_data_skip_says_what_the_data_is_and_where_it_comes_from(tmp_path, monkeypatch):
+    from tests import conftest
+
+    monkeypatch.setattr(conftest, "SHARED_DATA", tmp_path / "nowhere")
+    with pytest.raises(pytest.skip.Exception) as skip:
+        conftest.shared_data("aurova_digit_grasp")
+    reason = str(skip.value)
+    for what in ("DIGIT frames", "forces", "depth", "backgrounds", "ball presses", "GelSight", "AUROVA-LAB",
+                 "README.md", "TACTILE_FORCE_SHARED_DATA", str(tmp_path / "nowhere")):
+        assert what in reason, f"the skip reason does not say {what!r}: {reason}"
+    assert "to ../shared/data" not in reason  # the default that was missing is no advice
