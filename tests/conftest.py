@@ -20,11 +20,24 @@ CYCLONEDDS_LOOPBACK = REPO / "tests" / "cyclonedds_loopback.xml"
 os.environ["CYCLONEDDS_URI"] = CYCLONEDDS_LOOPBACK.as_uri()
 
 
+#: What the shared data is, where it comes from and how to point to it: the one reason every
+#: test that needs it gives when it is absent.
+SHARED_DATA_ABOUT = (
+    "it holds real sensor data kept outside the repository (real DIGIT frames with forces and depth images "
+    "from AUROVA-LAB, DIGIT backgrounds and ball presses, GelSight Mini and Wedge data; its README.md gives "
+    "each file's source and licence); by default it is shared/data in the folder that holds the checkout: "
+    "set TACTILE_FORCE_SHARED_DATA to the data folder when it is elsewhere"
+)
+
+
 def shared_data(*parts: str) -> Path:
-    """Path under ../shared/data; skips the test with a clear reason when it is absent."""
+    """Path under the shared data folder (``SHARED_DATA``); skips the test, saying what the data
+    is and where it comes from, when it is absent."""
     p = SHARED_DATA.joinpath(*parts)
     if not p.exists():
-        pytest.skip(f"real sensor data not found at {p} (set TACTILE_FORCE_SHARED_DATA to ../shared/data)")
+        where = (f"the shared data folder {SHARED_DATA} is missing" if not SHARED_DATA.is_dir()
+                 else f"{p} is missing from the shared data folder")
+        pytest.skip(f"{where}: {SHARED_DATA_ABOUT}")
     return p
 
 
