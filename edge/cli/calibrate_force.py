@@ -14,7 +14,8 @@ from ..fitting.force_calibration import METHODS, CalibrationRefused
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("bundle", help="model bundle to calibrate (folder with model.onnx + model.json)")
+    parser.add_argument("bundle", help="model bundle to calibrate (folder with model.onnx + model.json), or 'default' "
+                                       "(the embedded default model)")
     parser.add_argument("--data", required=True,
                         help="labelled presses in the authors' layout (images/N.png + forces/force_N.txt), "
                              "e.g. what 'tactile-force record' writes; 10-30 presses from light to firm")
@@ -46,7 +47,12 @@ def main(args: argparse.Namespace) -> int:
 
     try:
         plot = plot_path(args.out)
-        bundle, cal = calibrate_bundle(args.bundle, args.data, args.out, args.method, overwrite=args.force,
+        source = args.bundle
+        if source == "default":  # as run --bundle default: the embedded default model
+            from ..scene import default_bundle_path
+
+            source = default_bundle_path()
+        bundle, cal = calibrate_bundle(source, args.data, args.out, args.method, overwrite=args.force,
                                        coverage=getattr(args, "coverage", DEFAULT_COVERAGE), plot=plot,
                                        sensor=getattr(args, "sensor", ""), background=getattr(args, "background", None))
     except IntervalError as exc:
