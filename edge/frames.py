@@ -18,6 +18,12 @@ FRAME_ROWS = 320
 FRAME_COLS = 240
 FRAME_SHAPE = (FRAME_ROWS, FRAME_COLS, 3)
 
+#: Most frames one model call takes, and so most sensors one runtime serves (one frame per
+#: sensor per call). Each frame still needs its own contact-gate pass, about 0.4 to 1 ms on
+#: one core, so 16 sensors at 60 fps fill one core's 16.7 ms frame period: a hand or two
+#: (fingertips and palm pads) fit; more sensors need a second runtime.
+MAX_BATCH = 16
+
 _UINT8 = np.dtype(np.uint8)
 
 #: Mean intensity (0..255) under which a frame counts as all-dark, over which all-white.

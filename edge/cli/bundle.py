@@ -6,8 +6,8 @@ declares (inputs, variant), every manifest claim the graph can show agrees with 
 (:func:`.graph_facts.manifest_problems`, no ``onnx`` package needed: the precision,
 int8-static / int8-dynamic / fp16 / fp32, from its op types and weights; the network input
 size against ``architecture.input_scale`` / ``network_input_hw`` and the inputs' reduction;
-the inputs against the variant) and one batch-2 run gives two finite forces; 1 when any
-check fails (the reasons on one line).
+the inputs against the variant) and one run of the largest batch a runtime sends (16 frames,
+one per sensor) gives 16 finite forces; 1 when any check fails (the reasons on one line).
 """
 
 from __future__ import annotations
@@ -154,7 +154,8 @@ def _verify(path: Path) -> int:
 
     from ..bundle.graph_facts import graph_facts, manifest_problems
     from ..errors import BundleError
-    from ..model.onnx_model import MAX_BATCH, OnnxForceModel
+    from ..frames import MAX_BATCH
+    from ..model.onnx_model import OnnxForceModel
 
     outside = files_outside(path)
     if outside:

@@ -12,12 +12,13 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import BundleError
-from .onnx_model import DEPTH_SHAPE, MAX_BATCH, RGB_SHAPE, OnnxForceModel
+from .onnx_model import DEPTH_SHAPE, LOAD_BATCH, RGB_SHAPE, OnnxForceModel
 
 
 @dataclass
 class LadderChoice:
-    """The bundle the ladder picked and why; p99_ms per candidate path (batch-2 calls)."""
+    """The bundle the ladder picked and why; p99_ms per candidate path (calls of the
+    runtime's largest batch, 2 by default)."""
 
     path: Path
     reason: str
@@ -25,10 +26,11 @@ class LadderChoice:
     score: dict[str, float] = field(default_factory=dict)
 
 
-def measure_p99_ms(model: OnnxForceModel, runs: int = 30) -> float:
-    """p99 wall time (ms) of a batch-2 predict on zeros (the worst case at run time)."""
-    rgb = np.zeros((MAX_BATCH, *RGB_SHAPE), np.uint8)
-    depth = np.zeros((MAX_BATCH, *DEPTH_SHAPE), np.uint8) if model.needs_depth else None
+def measure_p99_ms(model: OnnxForceModel, runs: int = 30, batch: int = LOAD_BATCH) -> float:
+    """p99 wall time (ms) of a predict of ``batch`` frames of zeros (the worst case at run
+    time: every sensor in contact; default 2, both fingers of a gripper)."""
+    rgb = np.zeros((batch, *RGB_SHAPE), np.uint8)
+    depth = np.zeros((batch, *DEPTH_SHAPE), np.uint8) if model.needs_depth else None
     times = []
     for _ in range(runs):
         t0 = time.perf_counter_ns()
@@ -52,15 +54,16 @@ def pick_from_ladder(keys: list[str], p99_ms: dict[str, float], score: dict[str,
 
 
 def choose_bundle(paths: list[str | os.PathLike], budget_ms: float, threads: int = 1,
-                  runs: int = 30) -> tuple[OnnxForceModel, LadderChoice]:
-    """Measure each bundle's p99 and keep the most accurate one (manifest error) whose p99
-    fits ``budget_ms``; if none fits, the fastest. Returns the loaded model and the choice."""
+                  runs: int = 30, batch: int = LOAD_BATCH) -> tuple[OnnxForceModel, LadderChoice]:
+    """Measure each bundle's p99 (a predict of ``batch`` frames: every sensor of the runtime
+    in contact; default 2) and keep the most accurate one (manifest error) whose p99 fits
+    ``budget_ms``; if none fits, the fastest. Returns the loaded model and the choice."""
     if not paths:
         raise BundleError("bundle ladder: no bundles given")
     models, p99, score = {}, {}, {}
     for p in paths:
         m = OnnxForceModel(p, threads=threads)
         key = str(p)
-        models[key], p99[key], score[key] = m, measure_p99_ms(m, runs), m.bundle.manifest.error_score()
+        models[key], p99[key], score[key] = m, measure_p99_ms(m, runs, batch), m.bundle.manifest.error_score()
     best, reason = pick_from_ladder(list(models), p99, score, budget_ms)
     return models[best], LadderChoice(Path(best), reason, p99, score)

@@ -2,8 +2,10 @@
 its latency is :mod:`.ladder`).
 
 :class:`OnnxForceModel` wraps one ORT session: intra-op threads configurable (default 1),
-sequential execution, input and output buffers for batch 1..2 allocated once and bound to
-the session (IO binding: no per-call feed dict or output allocation), warm-up at load.
+sequential execution, input buffers for up to :data:`~tactile_force.edge.frames.MAX_BATCH`
+frames allocated once and bound to the session (IO binding: no per-call feed dict or output
+allocation); batches 1 and 2 are bound and warmed at load, a larger batch (a runtime with
+more sensors) is bound once, on its first call.
 ``predict(rgb (N,320,240,3) uint8, depth (N,320,240,1) uint8 | None) -> (N,) float32 N``.
 
 A compact bundle's graph starts at the network resolution (manifest format 3: each input's
@@ -25,12 +27,13 @@ from ..bundle.manifest import FrameReduction, InputKind, Reduction
 from ..bundle.store import Bundle, load_bundle
 from ..checks import expect
 from ..errors import BundleError, FrameError, ModelClosedError
-from ..frames import FRAME_COLS, FRAME_ROWS, check_batch
+from ..frames import FRAME_COLS, FRAME_ROWS, MAX_BATCH, check_batch
 from ..gate.reduce import FrameReducer
 
 RGB_SHAPE = (FRAME_ROWS, FRAME_COLS, 3)
 DEPTH_SHAPE = (FRAME_ROWS, FRAME_COLS, 1)
-MAX_BATCH = 2  # both fingers of a gripper
+#: Batches bound and warmed at load (both fingers of a gripper); larger ones are bound on first use.
+LOAD_BATCH = 2
 
 
 class OnnxForceModel:
@@ -87,13 +90,17 @@ class OnnxForceModel:
         self.reduction: FrameReduction = first.reduction if first is not None else FrameReduction()
         self._rgb_reducer = FrameReducer(rgb_spec.reduction, RGB_SHAPE) if rgb_spec else None
         self._depth_reducer = FrameReducer(depth_spec.reduction, DEPTH_SHAPE) if depth_spec else None
-        # Allocated once; predict reduces / copies into the first N rows.
+        # Allocated once for the largest batch (zeroed pages: rows never used are never
+        # touched); predict reduces / copies into the first N rows. Output buffer and IO
+        # binding of batch n: made at load for 1..LOAD_BATCH, for a larger n on its first call.
         self._rgb = np.zeros((MAX_BATCH, *self.rgb_shape), np.uint8) if self.rgb_shape else None
         self._depth = np.zeros((MAX_BATCH, *self.depth_shape), np.uint8) if self.depth_shape else None
-        self._outs = [self._checked_output(n) for n in range(1, MAX_BATCH + 1)]
-        self._bindings = [self._bind(n) for n in range(1, MAX_BATCH + 1)]
+        self._outs: list[np.ndarray | None] = [None] * MAX_BATCH
+        self._bindings: list = [None] * MAX_BATCH
+        for n in range(1, LOAD_BATCH + 1):
+            self._prepare(n)
         for _ in range(warmup):
-            for n in range(1, MAX_BATCH + 1):
+            for n in range(1, LOAD_BATCH + 1):
                 self._run(n)
 
     @property
@@ -127,19 +134,25 @@ class OnnxForceModel:
                               f"of {n}; expected one force (N) per frame")
         return np.empty_like(out)
 
-    def _bind(self, n: int):
-        """IO binding of the first n rows of the input buffers and of output buffer n (no copies)."""
+    def _prepare(self, n: int):
+        """Output buffer n and the IO binding of the first n rows of the input buffers to it
+        (no copies), made once; returns the binding."""
+        out = self._checked_output(n)
         binding = self.session.io_binding()
         for name, value in self._feed(n).items():
             binding.bind_cpu_input(name, value)
-        out = self._outs[n - 1]
         binding.bind_output(self.output_name, "cpu", 0, out.dtype, list(out.shape), out.ctypes.data)
+        self._outs[n - 1], self._bindings[n - 1] = out, binding
         return binding
 
     def _run(self, n: int) -> np.ndarray:
         """Forces (n,) float32 for the first n rows of the input buffers (a view: copy to keep)."""
-        self.session.run_with_iobinding(self._bindings[n - 1])
+        binding = self._bindings[n - 1]
+        if binding is None:  # a batch larger than LOAD_BATCH, first call: bound once
+            binding = self._prepare(n)
+        self.session.run_with_iobinding(binding)
         out = self._outs[n - 1]
+        assert out is not None  # made with the binding
         forces = out.reshape(-1) if out.dtype == np.float32 else out.astype(np.float32).reshape(-1)
         if self.calibration is not None:
             self.calibration.apply_inplace(forces)  # in the bound buffer, overwritten by the next run
@@ -149,7 +162,7 @@ class OnnxForceModel:
         """Forces in newtons, (N,) float32, for rgb (N,320,240,3) uint8 BGR and, for
         depth variants, depth (N,320,240,1) uint8, or depth images already at the network
         resolution (N, rows, cols, 1) (what a depth stage on the network grid makes, e.g.
-        80 x 60). N is 1 or 2. D / Dmod bundles read only the depth images (rgb may then be None).
+        80 x 60). N is 1 to MAX_BATCH (16). D / Dmod bundles read only the depth images (rgb may then be None).
         A bundle whose graph starts at the network resolution reduces the frames here, once,
         by its recorded :attr:`reduction` (edge/gate/reduce.py) straight into the bound input buffer:
         ``predict(frames)`` equals ``predict_reduced(reduce_frames(frames, model.reduction))``.
@@ -260,9 +273,9 @@ def check_graph_contract(bundle: Bundle, session) -> None:
             raise BundleError(f"{where}: graph input {name!r} has shape {list(gi.shape)}; the {spec.kind.value} "
                               f"contract is (batch, {rows}, {cols}, {ch}) NHWC ({how})"
                               + (f" (it looks transposed: {cols}x{rows})" if dims[1:3] == [cols, rows] else ""))
-        if dims[0] is not None and dims[0] < MAX_BATCH:
+        if dims[0] is not None:
             raise BundleError(f"{where}: graph input {name!r} has a fixed batch of {dims[0]}; the runtime needs a "
-                              f"dynamic batch (up to {MAX_BATCH} frames, both fingers): re-export the model")
+                              f"dynamic batch (1 to {MAX_BATCH} frames, one per sensor): re-export the model")
     extra = sorted(set(graph_inputs) - set(declared))
     if extra:
         raise BundleError(f"{where}: the ONNX graph has input(s) {extra} that the manifest does not declare "

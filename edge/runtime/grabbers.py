@@ -1,11 +1,12 @@
 """The grabber threads of :class:`~tactile_force.edge.runtime.loop.ForceRuntime`: one reader thread
-per sensor, each holding at most one read ahead (a one-slot hand-over), so one sensor never
-waits for the other's camera. :func:`read_once` is one timed ``read()`` of a source (the
+per sensor, each holding at most one read ahead (a one-slot hand-over), so no sensor ever
+waits for another's camera. :func:`read_once` is one timed ``read()`` of a source (the
 loop's own thread uses it when there are no grabbers)."""
 
 from __future__ import annotations
 
 import threading
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Protocol, TypeVar
@@ -52,10 +53,17 @@ class Grabbers:
     """One reader thread per sensor, each holding at most one read ahead (a one-slot
     hand-over: lossless for file sources; live cameras drop old frames themselves).
     :meth:`take` waits until at least one live sensor's read is there and takes every one
-    that is; a source raising anything but SourceError re-raises in the loop's thread."""
+    that is (a slow or blocked sensor holds up no other); a source raising anything but
+    SourceError re-raises in the loop's thread.
+
+    One lock guards the slots; the loop waits on one condition (a read is there), each
+    grabber on its own (its slot was taken), so a hand-over wakes one thread, however many
+    sensors there are."""
 
     def __init__(self, sensors: Sequence[GrabbedSensor], clock: Callable[[], int]) -> None:
-        self._cond = threading.Condition()
+        lock = threading.Lock()
+        self._cond = threading.Condition(lock)  # the loop's: a read or a failure is there
+        self._free = {s.name: threading.Condition(lock) for s in sensors}  # each grabber's: its slot is empty
         self._slots: dict[str, Read | None] = {s.name: None for s in sensors}
         self._failure: BaseException | None = None
         self._stop = False
@@ -73,13 +81,14 @@ class Grabbers:
                     self._failure = exc
                     self._cond.notify_all()
                 return
+            free = self._free[s.name]
             with self._cond:
                 while self._slots[s.name] is not None and not self._stop:
-                    self._cond.wait()
+                    free.wait()
                 if self._stop:
                     return
                 self._slots[s.name] = r
-                self._cond.notify_all()
+                self._cond.notify_all()  # the loop's thread only waits on it
             if r.tf is None:  # end of the stream or a source error: this sensor is done
                 return
 
@@ -102,14 +111,18 @@ class Grabbers:
                 if r is not None:
                     got.append((s, r))
                     self._slots[s.name] = None
-            self._cond.notify_all()
+                    self._free[s.name].notify()  # that sensor's grabber may read its next frame
             return got
 
     def stop(self, timeout_s: float = 1.0) -> None:
         """Let every thread end (a thread blocked in ``read()`` ends once it returns) and
-        join each for up to ``timeout_s`` seconds."""
+        join them for up to ``timeout_s`` seconds in all (not per thread: closing a runtime
+        with many blocked sensors takes no longer than with one)."""
         with self._cond:
             self._stop = True
             self._cond.notify_all()
+            for free in self._free.values():
+                free.notify_all()
+        end = time.monotonic() + timeout_s
         for t in self._threads:
-            t.join(timeout_s)
+            t.join(max(0.0, end - time.monotonic()))

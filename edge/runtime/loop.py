@@ -2,7 +2,7 @@
 
 One :meth:`ForceRuntime.step` reads the newest frame of every live sensor, gates it, runs
 the depth stage (depth bundles only) and one ``predict`` call for all sensors in contact
-(batch 2 when both fingers touch), and returns one :class:`ForceReading` per frame:
+(one batch of every touching sensor's frame), and returns one :class:`ForceReading` per frame:
 
 - gate closed -> 0 N, ``no_contact``, the CNN is not run; while the gate still learns its
   background (detail "learning background") the frame is not judged: interval ``unknown``;
@@ -19,7 +19,7 @@ the depth stage (depth bundles only) and one ``predict`` call for all sensors in
   a frame outside the bundle's ``data_stats`` -> ``out_of_distribution`` (force kept), a contact
   beyond them -> ``saturated`` (docs/runtime.md, "Flags");
 - a source that raises SourceError gives one ``invalid_input`` reading naming the error and
-  is dropped; the other sensor keeps being served.
+  is dropped; the other sensors keep being served.
 
 The loop only orders the steps; each is one call per frame into the module that does it:
 read (``grabbers``), gate (``gating``), sensor watch (``sensor_watch``), depth (the sensor's
@@ -28,9 +28,12 @@ bar of ``bounds``). ``options`` holds what a runtime is built from (options, sen
 :class:`~.options.ForceModel` protocol), ``sharing`` who closes a shared model,
 ``depth_factory`` the depth stage of depth bundles.
 
-Two sensors are read side by side: each sensor's ``read()`` runs in its own grabber thread,
-which holds at most one frame read ahead, so one sensor never waits for the other's
-camera; a step serves every sensor whose frame is there (batch 2 when both are).
+A runtime serves 1 to :data:`~tactile_force.edge.frames.MAX_BATCH` (16) sensors. Two or more
+are read side by side: each sensor's ``read()`` runs in its own grabber thread, which holds
+at most one frame read ahead, so no sensor waits for another's camera; a step serves every
+sensor whose frame is there, those in contact in one batched predict (a slow or dead sensor
+holds up no other). Each frame still gets its own gate pass; each reading keeps its own
+sensor's name, frame index and time stamp.
 
 Sinks that log frames or contact masks (the MCAP writer with ``frames`` / ``mask``) get each
 gated frame and the gate's full-resolution mask through ``write_frame`` (:func:`frame_sinks`);
@@ -115,9 +118,10 @@ class _Pending:
 
 
 class ForceRuntime:
-    """Serve force readings for one or two sensors from one model.
+    """Serve force readings for 1 to :data:`~tactile_force.edge.frames.MAX_BATCH` (16) sensors
+    from one model.
 
-    sensors: one or two :class:`Sensor` (names unique). model: a
+    sensors: 1 to 16 :class:`Sensor` (names unique; e.g. the fingertips of a hand). model: a
     :class:`~.options.ForceModel` (OnnxForceModel, the OAK backend; a model lacking one of
     its members is refused with :class:`~tactile_force.edge.errors.ArgumentTypeError` naming
     it); a closed model is refused (:class:`ModelClosedError`). One model may be shared by
@@ -163,8 +167,12 @@ class ForceRuntime:
         self.stages = plan_stages(names, self.needs_depth, backend)
         self.stats = RuntimeStats()
         self._window = LatencyWindow(self.options.latency_window)
+        # The batch buffers, one row per sensor, allocated once (a step with one frame in
+        # contact hands the model views, with several it copies into these).
         self._rgb = np.empty((len(sensors), *FRAME_SHAPE), np.uint8)
-        self._depth = np.empty((len(sensors), FRAME_SHAPE[0], FRAME_SHAPE[1], 1), np.uint8)
+        grids = {s.depth.grid_frame_shape[:2] for s in sensors if s.depth is not None} if self.needs_depth else set()
+        rows, cols = grids.pop() if len(grids) == 1 else FRAME_SHAPE[:2]  # the depth stages' grid (e.g. 80 x 60)
+        self._depth = np.empty((len(sensors), rows, cols, 1), np.uint8)
         # One downscale per frame: a sensor whose gate reduces frames the way the model's
         # network input is reduced hands the gate's reduced image to ``predict_reduced``.
         shared = [shares_reduction(s.gate, model) for s in sensors]
@@ -389,7 +397,7 @@ class ForceRuntime:
                     for k, d in enumerate(ds):
                         self._depth[k] = d.reshape(self._depth.shape[1:])
                     depth = self._depth[:n]
-                elif len(ds) == n:  # depth images at another size (the network resolution)
+                elif len(ds) == n:  # depth stages on different grids (a custom depth_factory)
                     depth = np.stack([d.reshape(*d.shape[:2], 1) for d in ds])
             rgb = self._net[:n] if reduced and self._net is not None else self._rgb[:n]
         t0 = self.clock()

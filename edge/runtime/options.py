@@ -16,7 +16,7 @@ import numpy as np
 from ..bundle.manifest import FrameReduction
 from ..checks import check_fields, expect, expect_members
 from ..errors import ArgumentTypeError, OptionsError
-from ..frames import FrameSource
+from ..frames import MAX_BATCH, FrameSource
 from ..gate.contact_gate import ContactGate
 from ..reading import ForceReading, StageLatency
 from ..typed_json import check
@@ -75,7 +75,8 @@ class ForceModel(Protocol):
 
     def predict(self, rgb: np.ndarray | None, depth: np.ndarray | None = None) -> np.ndarray:
         """Forces in N, (N,) float32, for full-resolution frames (N, 320, 240, 3) uint8 BGR and,
-        for depth models, depth images (N, rows, cols, 1) uint8; N is 1 or 2."""
+        for depth models, depth images (N, rows, cols, 1) uint8; N is 1 to
+        :data:`~tactile_force.edge.frames.MAX_BATCH` (one frame per sensor of the runtime)."""
         ...
 
     def predict_reduced(self, rgb: np.ndarray | None, depth: np.ndarray | None = None) -> np.ndarray:
@@ -153,8 +154,8 @@ class RuntimeOptions:
     threads: ORT intra-op threads (used when the runtime loads the model).
     report_stale: emit a ``stale`` reading for every superseded frame.
     latency_window: frames kept for the rolling p50/p99.
-    grabbers: read each sensor in its own grabber thread (None: when there are two sensors;
-    one sensor is read in the loop's thread, the lowest-latency path).
+    grabbers: read each sensor in its own grabber thread (None: when there are two or more
+    sensors; one sensor is read in the loop's thread, the lowest-latency path).
 
     Raises :class:`OptionsError` naming the field when deadline_ms is not a finite number > 0,
     threads < 1 or latency_window < 1, :class:`ArgumentTypeError` for a value of another type."""
@@ -250,15 +251,18 @@ def check_runtime_args(sensors: object, model: object, options: object, clock: o
         A wrong type, or a model that lacks a :class:`ForceModel` member (the message names
         every missing member).
     OptionsError
-        Not 1 or 2 sensors.
+        Not 1 to :data:`~tactile_force.edge.frames.MAX_BATCH` (16) sensors.
     """
+    want = f"a list of 1 to {MAX_BATCH} Sensor (one per fingertip or pad)"
     if isinstance(sensors, Sensor):
-        raise ArgumentTypeError("ForceRuntime.sensors: got one Sensor; expected a list of 1 or 2 Sensor "
-                                "(one per finger): pass [sensor]")
-    expect(sensors, (list, tuple), "ForceRuntime.sensors", "a list of 1 or 2 Sensor (one per finger)")
+        raise ArgumentTypeError(f"ForceRuntime.sensors: got one Sensor; expected {want}: pass [sensor]")
+    expect(sensors, (list, tuple), "ForceRuntime.sensors", want)
     assert isinstance(sensors, (list, tuple))
-    if not 1 <= len(sensors) <= 2:
-        raise OptionsError(f"ForceRuntime.sensors: {len(sensors)} sensors; expected 1 or 2 (one per finger)")
+    if not 1 <= len(sensors) <= MAX_BATCH:
+        why = ("" if not sensors else f": every frame needs its own contact-gate pass (about 0.4 to 1 ms on one "
+               f"core), so {MAX_BATCH} sensors at 60 fps fill one core's 16.7 ms frame period; serve more with a "
+               "second ForceRuntime")
+        raise OptionsError(f"ForceRuntime.sensors: {len(sensors)} sensors; expected 1 to {MAX_BATCH}{why}")
     for i, s in enumerate(sensors):
         expect(s, Sensor, f"ForceRuntime.sensors[{i}]", "a Sensor(name, source, gate)")
     expect_members(model, ForceModel, "ForceRuntime.model",

@@ -18,7 +18,7 @@ from .model import Clock, Scene
 def load_model(scene: Scene) -> tuple[Any, str, list[str]]:
     """(model, backend actually used, notes) for the scene's bundle(s) and backend."""
     from ..model.ladder import choose_bundle
-    from ..model.onnx_model import OnnxForceModel
+    from ..model.onnx_model import LOAD_BATCH, OnnxForceModel
 
     notes: list[str] = []
     if scene.backend == "oak":
@@ -36,7 +36,8 @@ def load_model(scene: Scene) -> tuple[Any, str, list[str]]:
             notes.append(f"OAK unavailable ({exc}); falling back to the CPU")
     if len(scene.bundles) > 1:
         ladder: list[str | os.PathLike] = list(scene.bundles)
-        model, choice = choose_bundle(ladder, scene.deadline_ms, threads=scene.threads)
+        model, choice = choose_bundle(ladder, scene.deadline_ms, threads=scene.threads,
+                                      batch=max(LOAD_BATCH, len(scene.sensors)))  # every sensor in contact
         notes.append(choice.reason)
         return model, "cpu", notes
     return OnnxForceModel(scene.bundles[0], threads=scene.threads), "cpu", notes

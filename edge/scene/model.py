@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
 
+from ..frames import MAX_BATCH
 from ..gate.options import GateOptions
 from ..typed_json import check
 
@@ -179,7 +180,7 @@ class SceneFile:
     runtime: RuntimeSettings = field(default_factory=RuntimeSettings)
     gate: dict[str, Any] = field(default_factory=dict)
     depth: DepthSettings = field(default_factory=DepthSettings)
-    sensor: list[Any] = field(default_factory=list, metadata=check(expected="[[sensor]] tables (one or two)"))
+    sensor: list[Any] = field(default_factory=list, metadata=check(expected=f"[[sensor]] tables (1 to {MAX_BATCH})"))
     output: list[OutputSpec] = field(default_factory=list, metadata=check(expected="[[output]] tables"))
 
 

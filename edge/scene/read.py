@@ -20,6 +20,7 @@ else:  # Python 3.10: the same parser from PyPI (a core dependency there)
     import tomli as tomllib
 
 from ..errors import SceneError
+from ..frames import MAX_BATCH
 from ..gate.options import GateOptions
 from ..typed_json import Check, TypedJsonError, expand_path, from_json, read_value
 from .kinds import SOURCE_KINDS, SOURCES
@@ -73,6 +74,38 @@ def _sensor(raw: Any, i: int, gate_table: dict[str, Any], base: Path) -> SensorS
                       gate=_gate(keys.gate, preset, f"{key}.gate"), **values)
 
 
+def _device_key(s: SensorSpec) -> tuple[str, str] | None:
+    """The device a live sensor table opens, as (what, which) to compare tables by: a DIGIT
+    by its serial (or index), a V4L2 node (a camera index N is /dev/videoN), a GelSight Mini
+    by its serial or index; None for file and virtual sources (two may read the same file)."""
+    if s.source == "digit":
+        return ("DIGIT", str(s.serial if s.serial is not None else 0))
+    if s.source not in ("camera", "gelsight_mini"):
+        return None
+    dev = s.device
+    if s.source == "camera" and isinstance(dev, int):
+        dev = f"/dev/video{dev}"
+    if isinstance(dev, str) and dev.startswith("/dev/"):
+        return ("camera", dev)
+    return (s.source, str(dev))
+
+
+def _one_table_per_device(sensors: list[SensorSpec]) -> None:
+    """TypedJsonError naming the key when two [[sensor]] tables open the same device (two
+    DIGITs with one serial, one /dev/videoN twice): they would fight over one camera."""
+    seen: dict[tuple[str, str], int] = {}
+    for i, s in enumerate(sensors):
+        key = _device_key(s)
+        if key is None:
+            continue
+        if key in seen:
+            j = seen[key]
+            field_name = "serial" if s.source == "digit" else "device"
+            raise TypedJsonError(f"sensor[{i}].{field_name}: {key[0]} {key[1]!r} is also sensor[{j}] "
+                                 f"({sensors[j].name}); expected one [[sensor]] table per device")
+        seen[key] = i
+
+
 def _bundles(bundle: str | list[str], base: Path) -> list[Path]:
     items = bundle if isinstance(bundle, list) else [bundle]
     return [default_bundle_path() if b == "default"
@@ -104,12 +137,15 @@ def parse_scene(data: dict, path: Path | None, base: Path | None = None) -> Scen
         doc = from_json(SceneFile, data, base=base, prefixes=PACKAGE_PREFIXES, table=_TABLE)
         _gate(doc.gate, GateOptions(), "gate")  # keys and types, once
         if not doc.sensor:
-            raise TypedJsonError("sensor: no [[sensor]] tables; expected one or two sensors")
-        if len(doc.sensor) > 2:
-            raise TypedJsonError(f"sensor: {len(doc.sensor)} [[sensor]] tables; expected one or two (one per finger)")
+            raise TypedJsonError(f"sensor: no [[sensor]] tables; expected 1 to {MAX_BATCH} sensors")
+        if len(doc.sensor) > MAX_BATCH:
+            raise TypedJsonError(f"sensor: {len(doc.sensor)} [[sensor]] tables; expected 1 to {MAX_BATCH} (one "
+                                 f"runtime serves at most {MAX_BATCH} sensors: every frame needs its own gate pass, "
+                                 f"and {MAX_BATCH} at 60 fps fill one core; split them over two scenes)")
         sensors = [_sensor(t, i, doc.gate, base) for i, t in enumerate(doc.sensor)]
         if len({s.name for s in sensors}) != len(sensors):
             raise TypedJsonError(f"sensor: names {[s.name for s in sensors]} must be unique")
+        _one_table_per_device(sensors)
         rt = doc.runtime
         bundles = _bundles(rt.bundle, base)
     except TypedJsonError as exc:

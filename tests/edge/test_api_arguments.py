@@ -52,7 +52,7 @@ CASES: dict[str, tuple[typing.Callable[..., object], str]] = {
     "ForceRuntime(model=None)": (lambda m, d: ForceRuntime([_sensor()], model=None),
                                  r"ForceRuntime\.model=None: expected a force model with predict\(\)"),
     "ForceRuntime(sensors=a_sensor)": (lambda m, d: ForceRuntime(_sensor(), m),
-                                       r"ForceRuntime\.sensors: got one Sensor; expected a list of 1 or 2 Sensor"),
+                                       r"ForceRuntime\.sensors: got one Sensor; expected a list of 1 to 16 Sensor"),
     "ForceRuntime(sensors=['left'])": (lambda m, d: ForceRuntime(["left"], m),
                                        r"ForceRuntime\.sensors\[0\]='left': expected a Sensor"),
     "ForceRuntime(options=dict)": (lambda m, d: ForceRuntime([_sensor()], m, options={"threads": 2}),
@@ -137,8 +137,11 @@ def test_wrong_types_are_type_errors_and_values_out_of_range_value_errors():
     with pytest.raises(OptionsError) as out_of_range:
         GateOptions(threshold=300.0)
     assert isinstance(out_of_range.value, ValueError) and not isinstance(out_of_range.value, TypeError)
-    with pytest.raises(OptionsError, match=r"ForceRuntime\.sensors: 3 sensors; expected 1 or 2"):
-        ForceRuntime([_sensor(), _sensor(), _sensor()], object())
+    with pytest.raises(OptionsError, match=r"ForceRuntime\.sensors: 17 sensors; expected 1 to 16: every frame needs "
+                                           r"its own contact-gate pass .* serve more with a second ForceRuntime"):
+        ForceRuntime([_sensor() for _ in range(17)], object())
+    with pytest.raises(OptionsError, match=r"ForceRuntime\.sensors: 0 sensors; expected 1 to 16$"):
+        ForceRuntime([], object())
 
 
 class _PredictOnly:

@@ -130,6 +130,30 @@ def test_subscriber_receives_wrench_and_diagnostics(domain):
     assert {kv.key: kv.value for kv in diags[1].status[0].values}["truth_n"] == "4.0"
 
 
+def test_every_sensor_of_a_hand_reaches_a_subscriber(domain, aurova_dir):
+    """A runtime serving four sensors publishes every reading on the one topic, each with its
+    sensor's name as frame_id and its own frame time."""
+    from tests.edge.outputs.test_many_sensor_outputs import NAMES, four_finger_runtime
+
+    deep = Qos(Policy.Reliability.BestEffort, Policy.History.KeepLast(200), Policy.Durability.Volatile)
+    sub = DomainParticipant(domain)
+    reader = DataReader(sub, Topic(sub, "rt/hand/force", WrenchStamped, qos=deep), qos=deep)
+    clock = StampClock(offset_ns=0)
+    rt = four_finger_runtime(aurova_dir)
+    readings: list = []
+    got: list = []
+    with Ros2Publisher("/hand/force", domain_id=domain, stamp_clock=clock, diagnostics=False,
+                       interval=False) as pub:
+        assert _wait(lambda: pub._force.get_publication_matched_status().current_count == 1), "no subscriber matched"
+        rt.run([pub], on_reading=readings.append)
+        assert _wait(lambda: (got.extend(reader.take(N=100)), len(got) >= len(readings))[-1]), f"got {len(got)}"
+    rt.close()
+    assert len(readings) == 4 * 11
+    for name in NAMES:
+        want = [divmod(r.timestamp_ns, 10**9) for r in readings if r.sensor == name]
+        assert [(w.header.stamp.sec, w.header.stamp.nanosec) for w in got if w.header.frame_id == name] == want
+
+
 def test_reliable_default_qos_subscriber_does_not_match_sensor_data(domain):
     """What docs/ros2.md warns about: a reliable (default-QoS) subscriber never matches the
     best-effort sensor-data writer; with qos='reliable' it does."""

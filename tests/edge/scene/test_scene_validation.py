@@ -48,7 +48,27 @@ BAD_SCENES = {
                        r"sensor\[0\]\.source: expected one of 'camera', .*got \{'a': 1\}"),
     "unknown top-level table": ("[sensors]\n" + SENSOR,
                                 r": unknown key 'sensors'; allowed keys: runtime, gate, depth, sensor, output"),
+    "17 sensors": ("".join(f'[[sensor]]\nname = "s{k}"\nsource = "virtual"\n' for k in range(17)),
+                   r"sensor: 17 \[\[sensor\]\] tables; expected 1 to 16 \(one runtime serves at most 16 sensors"),
+    "two DIGITs with one serial": ("".join(f'[[sensor]]\nname = "{n}"\nsource = "digit"\nserial = "{s}"\n'
+                                           for n, s in (("thumb", "D20001"), ("index", "D20002"), ("ring", "D20001"))),
+                                   r"sensor\[2\]\.serial: DIGIT 'D20001' is also sensor\[0\] \(thumb\); expected one "
+                                   r"\[\[sensor\]\] table per device"),
+    "one camera twice": ('[[sensor]]\nname = "a"\nsource = "camera"\ndevice = 2\n'
+                         '[[sensor]]\nname = "b"\nsource = "camera"\ndevice = "/dev/video2"\n',
+                         r"sensor\[1\]\.device: camera '/dev/video2' is also sensor\[0\] \(a\)"),
 }
+
+
+def test_a_hand_of_digits_by_serial_parses(tmp_path):
+    """Up to 16 sensors; DIGITs enumerate by serial, one table each (no device is opened)."""
+    serials = [f"D2000{k}" for k in range(8)]
+    p = tmp_path / "hand.toml"
+    p.write_text("".join(f'[[sensor]]\nname = "f{k}"\nsource = "digit"\nserial = "{s}"\n'
+                         for k, s in enumerate(serials)))
+    scene = load_scene(p)
+    assert [s.serial for s in scene.sensors] == serials
+    assert [s.name for s in scene.sensors] == [f"f{k}" for k in range(8)]
 
 
 @pytest.mark.parametrize("case", sorted(BAD_SCENES))
