@@ -10,8 +10,7 @@ Results go to ``--out DIR`` (default out/benchmarks, git-ignored); docs/benchmar
 when it is named. Every page states the command, the commit of the code that measured, the
 machine and its load while measuring. The under-1 ms verdict on this host is ``tactile-force
 bench`` (the shipped bundles; docs/bench.md). Pages with their own command: ``python -m
-benchmarks.calibration``, ``python -m benchmarks.depth_bundles``, ``python -m
-benchmarks.depth_benchmark``; the shipped bundles are built by ``python -m
+benchmarks.calibration``, ``python -m benchmarks.depth_bundles``; the shipped bundles are built by ``python -m
 benchmarks.reference``, ``python -m benchmarks.interval_fit`` and ``python -m
 benchmarks.virtual_depth_calibration``. From an install (the 'bench' extra) the same is
 ``python -m tactile_force.benchmarks``; what a robot host runs is ``tactile-force bench``

@@ -3,9 +3,12 @@
 What a robot host runs, with the core install only (numpy, onnxruntime, OpenCV; never torch,
 onnx or matplotlib): each bundle runs through ``ForceRuntime`` (one sensor, its contact gate,
 the depth stage for depth variants, the model) over virtual DIGIT frames in contact read from
-memory (:func:`benchmarks.harness.latency.measure`), while the machine is watched
-(:class:`benchmarks.harness.machine.CpuWindow`); the under-budget verdict per bundle is
-:func:`benchmarks.harness.budget.judge`'s (PASS / OVER_BUDGET / MACHINE_BUSY). With labelled data the
+memory (:func:`benchmarks.harness.latency.measure`) twice: back to back (each frame there when
+the runtime asks, the core never idle) and at the sensor's cadence (frames arriving at ``fps``
+per second, the core idle in between, as a user's controller sees them), while the machine is
+watched (:class:`benchmarks.harness.machine.CpuWindow`); the under-budget verdict per bundle is
+:func:`benchmarks.harness.budget.judge`'s (PASS / OVER_BUDGET / MACHINE_BUSY) on the total p99 at
+the cadence (back to back when no cadence is measured, as ``study`` does). With labelled data the
 error comes from a replay of that folder through the same runtime ``tactile-force run``
 builds, with the same metric code (:func:`tactile_force.edge.data.metrics.readings_error`).
 
@@ -21,10 +24,11 @@ import os
 import re
 import sys
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from tactile_force.edge.runtime.replay import replay_readings
+from tactile_force.edge.typed_json import check
 
 from .harness.budget import Attempt
 from .harness.frames import contact_frames
@@ -34,6 +38,8 @@ SCHEMA = "tactile-force-bench/1"
 REPORT_JSON, REPORT_MD, PLOT_PNG = "report.json", "report.md", "pareto.png"
 #: The stages a reading's latency carries, in report order (``depth`` only for depth variants).
 STAGES = ("source", "gate", "depth", "inference", "glue", "total")
+#: Readings not counted before each measurement (back to back and at the cadence).
+WARMUP = 30
 
 
 # ----------------------------------------------------------------------------- the contract
@@ -46,6 +52,21 @@ class Timing:
     p99: float | None
     mean: float | None
     n: int
+
+
+@dataclass
+class Cadence:
+    """A bundle measured with frames arriving at ``fps`` per second (each frame due at
+    t0 + i / fps, the source sleeping until it is): ``total_ms`` as :attr:`BundleResult.total_ms`
+    (frame arrival -> reading, over the frames read), ``cpu_share`` the process CPU time over
+    the wall time meanwhile (0.05 = 5 % of one core; None: not measured), ``missed`` frames the
+    runtime was late for (skipped, as a camera's newest-frame grabber skips them; no reading
+    measured for them)."""
+
+    fps: float = field(metadata=check(gt=0))
+    total_ms: Timing
+    cpu_share: float | None
+    missed: int = 0
 
 
 @dataclass
@@ -80,12 +101,15 @@ class BenchError:
 
 @dataclass
 class BundleResult:
-    """One bundle's row: where it is, what it is, its latency through ``ForceRuntime``
-    (``total_ms``: frame arrival -> reading, what a reading's total_ms shows; ``stages_ms``:
-    source, gate, depth, inference, glue), its error on labelled data (None without
-    ``--data``), the error its manifest records (``manifest_re``, on the data it was made
-    with), and its verdict against the budget: PASS, OVER_BUDGET, MACHINE_BUSY, or NO_READINGS
-    (most bench frames gave no force, e.g. the bundle fails on them: ``note`` says why).
+    """One bundle's row: where it is, what it is, its latency through ``ForceRuntime`` back to
+    back (``total_ms``: frame arrival -> reading, what a reading's total_ms shows; ``stages_ms``:
+    source, gate, depth, inference, glue) and at the sensor's cadence (``cadence``; None when
+    not measured, e.g. by ``study`` or in a report from before it was measured), its error on
+    labelled data (None without ``--data``), the error its manifest records (``manifest_re``,
+    on the data it was made with), and its verdict against the budget, judged on the total
+    p99 at the cadence (back to back without one): PASS, OVER_BUDGET, MACHINE_BUSY,
+    TOO_FEW_READINGS, or NO_READINGS (most bench frames gave no force, e.g. the bundle fails on
+    them: ``note`` says why). ``attempts`` carry the judged p99.
     ``precision`` is what the graph holds, as ``bundle verify`` reads it
     (:func:`tactile_force.edge.bundle.graph_facts.graph_precision`), not the manifest's word; ``note``
     says when the manifest claims another."""
@@ -101,14 +125,22 @@ class BundleResult:
     verdict: str
     attempts: list[Attempt] = field(default_factory=list)
     note: str = ""
+    cadence: Cadence | None = None
+
+    @property
+    def judged_ms(self) -> Timing:
+        """The total the verdict is judged on: at the cadence when measured, else back to back."""
+        return self.cadence.total_ms if self.cadence is not None else self.total_ms
 
 
 @dataclass
 class BenchReport:
     """What ``tactile-force bench`` measured (``report.json``; docs/bench.md).
 
-    verdict: PASS when every bundle's total p99 is within ``budget_ms``; OVER_BUDGET when
-    any bundle is over it on a quiet machine; else MACHINE_BUSY (no verdict)."""
+    verdict: PASS when every bundle's judged total p99 (at the cadence when measured) is
+    within ``budget_ms``; else as :func:`overall_verdict`. ``frames``: readings measured back
+    to back per bundle (at the cadence: each bundle's ``cadence.total_ms.n`` and its
+    ``missed``)."""
 
     schema: str
     machine: Machine
@@ -196,9 +228,13 @@ def replay_error(bundle: Path, data: Path, background: Path | None, threads: int
 
 
 def bench_bundle(path: Path, pool, frames: int = 1000, threads: int = 1, budget_ms: float = 1.0,
-                 repeats: int = 3, pause_s: float = 30.0, warmup: int = 30, window=None,
-                 sleep: Callable[[float], None] | None = None) -> BundleResult:
+                 repeats: int = 3, pause_s: float = 30.0, warmup: int = WARMUP, window=None,
+                 sleep: Callable[[float], None] | None = None, fps: float | None = None,
+                 cadence_frames: int = 300) -> BundleResult:
     """Latency of one bundle through ``ForceRuntime`` on this host and its verdict.
+
+    Each attempt measures back to back and, with ``fps``, at that cadence right after; the
+    verdict is judged on the total p99 at the cadence (back to back without ``fps``).
 
     Parameters
     ----------
@@ -207,7 +243,7 @@ def bench_bundle(path: Path, pool, frames: int = 1000, threads: int = 1, budget_
     pool : benchmarks.harness.frames.FramePool
         Frames in contact, read from memory (:func:`contact_frames`).
     frames, warmup : int
-        Readings measured, after ``warmup`` readings not counted.
+        Readings measured back to back, after ``warmup`` readings not counted.
     threads : int
         ONNX Runtime intra-op threads (and OpenCV's).
     budget_ms : float
@@ -215,6 +251,12 @@ def bench_bundle(path: Path, pool, frames: int = 1000, threads: int = 1, budget_
     repeats, pause_s : int, float
         Attempts at most, and the pause before a new one (only after an attempt over budget
         on a busy machine; :func:`benchmarks.harness.budget.judge`).
+    fps : float, optional
+        Frames per second of the sensor: also measure with frames arriving at this cadence
+        (``cadence_frames`` readings after ``warmup``, taking ``(warmup + cadence_frames) / fps``
+        seconds) and judge that. None: back to back only.
+    cadence_frames : int
+        Readings measured at the cadence.
 
     Returns
     -------
@@ -238,16 +280,21 @@ def bench_bundle(path: Path, pool, frames: int = 1000, threads: int = 1, budget_
     case = LatencyCase(cfg, precision, threads=threads, frames=frames, warmup=warmup, bundle=Path(path))
     depth = _depth_factory(m)
 
+    paced = None if fps is None else replace(case, frames=cadence_frames)
+
     def once():
         # warnings about the bench's own frames
         with _quiet("tactile_force.edge.runtime", "tactile_force.edge.gate.contact_gate"):
             r = measure(case, pool, bare=False, depth=depth)
-        return r, r.stages[JUDGED].p99
+            c = None if paced is None else measure(paced, pool, bare=False, depth=depth, fps=fps)
+        return (r, c), (c or r).stages[JUDGED].p99
 
-    result, verdict, attempts = judge(once, budget_ms, repeats, pause_s, window, sleep or time.sleep)
+    (result, at_fps), verdict, attempts = judge(once, budget_ms, repeats, pause_s, window, sleep or time.sleep)
     s = result.stages
+    cadence = None if at_fps is None or fps is None else Cadence(
+        float(fps), _timing(at_fps.stages[JUDGED]), _f(at_fps.cpu_share), at_fps.missed)
     verdict_name, note = verdict.name, result.note
-    few = too_few_for_p99(int(s[JUDGED].n))
+    few = too_few_for_p99(int((at_fps or result).stages[JUDGED].n))
     if few is not None:
         verdict_name, note = "TOO_FEW_READINGS", f"{few}; {note}" if note else few
     opened = re.search(r"gate open on (\d+)/(\d+) frames", note)
@@ -263,7 +310,7 @@ def bench_bundle(path: Path, pool, frames: int = 1000, threads: int = 1, budget_
     return BundleResult(
         path=str(path), name=m.name, variant=str(m.variant), precision=precision, total_ms=_timing(s[JUDGED]),
         stages_ms=stages, error=None, manifest_re=_f(score), verdict=verdict_name,
-        attempts=attempts, note=note)
+        attempts=attempts, note=note, cadence=cadence)
 
 
 def _quiet(*names: str):
@@ -300,15 +347,16 @@ def _first_problem(bundle, pool, depth) -> str:
 def run_bench(bundles: Sequence[Path], frames: int = 1000, threads: int = 1, budget_ms: float = 1.0,
               data: Path | None = None, background: Path | None = None, repeats: int = 3, pause_s: float = 30.0,
               show_progress: bool = True, command: str = "", pool=None, window=None,
-              sleep: Callable[[float], None] | None = None) -> BenchReport:
+              sleep: Callable[[float], None] | None = None, fps: float | None = 60.0,
+              cadence_frames: int = 300) -> BenchReport:
     """Measure every bundle (latency and verdict; error too with ``data``) into a :class:`BenchReport`.
 
     Parameters
     ----------
     bundles : sequence of Path
         Bundle folders (e.g. the values of :func:`tactile_force.edge.scene.shipped_bundles`).
-    frames, threads, budget_ms, repeats, pause_s
-        As in :func:`bench_bundle`.
+    frames, threads, budget_ms, repeats, pause_s, fps, cadence_frames
+        As in :func:`bench_bundle` (here ``fps`` defaults to 60, a DIGIT's cadence).
     data, background : Path, optional
         A labelled folder in the authors' layout and its no-contact image: adds the error.
     show_progress : bool
@@ -330,7 +378,7 @@ def run_bench(bundles: Sequence[Path], frames: int = 1000, threads: int = 1, bud
     try:
         for path in progress(list(bundles), desc="bench", enabled=show_progress):
             r = bench_bundle(Path(path), pool, frames, threads, budget_ms, repeats, pause_s, window=window,
-                             sleep=sleep)
+                             sleep=sleep, fps=fps, cadence_frames=cadence_frames)
             if data is not None:
                 r.error = replay_error(Path(path), Path(data), Path(background) if background else None, threads,
                                        warn=lambda m: print(f"warning: {m}", file=sys.stderr))
@@ -351,21 +399,61 @@ def _ms(v: float | None) -> str:
     return "-" if v is None else f"{v:.3f}"
 
 
+def cadence_label(report: BenchReport) -> str | None:
+    """``"60 fps"`` when the bundles were measured at one cadence, ``"cadence"`` at several,
+    None when none was (back to back only)."""
+    fps = sorted({b.cadence.fps for b in report.bundles if b.cadence is not None})
+    if not fps:
+        return None
+    return f"{fps[0]:g} fps" if len(fps) == 1 else "cadence"
+
+
+def _share(v: float | None) -> str:
+    return "-" if v is None else f"{100 * v:.1f} %"
+
+
 def table_rows(report: BenchReport) -> tuple[list[str], list[list[str]]]:
-    """Header and rows of the results table (one row per bundle)."""
-    head = ["bundle", "variant", "precision", "gate p50", "depth p50", "inference p50", "total p50", "total p99",
-            "RE (here)", "MAE N (here)", "RE (manifest)", "verdict"]
+    """Header and rows of the results table (one row per bundle): the stages and total back to
+    back (b2b), the total and process CPU at the cadence when measured."""
+    at = cadence_label(report)
+    head = ["bundle", "variant", "precision", "gate p50", "depth p50", "inference p50", "b2b total p50",
+            "b2b total p99"]
+    if at is not None:
+        head += [f"{at} total p50", f"{at} total p99", f"{at} CPU"]
+    head += ["RE (here)", "MAE N (here)", "RE (manifest)", "verdict"]
     rows = []
     for b in report.bundles:
         st = b.stages_ms
         e = b.error
-        rows.append([b.name, b.variant, b.precision, _ms(st["gate"].p50 if "gate" in st else None),
-                     _ms(st["depth"].p50 if "depth" in st else None),
-                     _ms(st["inference"].p50 if "inference" in st else None), _ms(b.total_ms.p50),
-                     _ms(b.total_ms.p99), "-" if e is None or e.re_mean is None else f"{e.re_mean:.3f}",
-                     "-" if e is None else f"{e.mae_mean:.3f}",
-                     "-" if b.manifest_re is None else f"{b.manifest_re:.3f}", VERDICT_TEXT.get(b.verdict, b.verdict)])
+        row = [b.name, b.variant, b.precision, _ms(st["gate"].p50 if "gate" in st else None),
+               _ms(st["depth"].p50 if "depth" in st else None),
+               _ms(st["inference"].p50 if "inference" in st else None), _ms(b.total_ms.p50), _ms(b.total_ms.p99)]
+        if at is not None:
+            c = b.cadence
+            row += ["-", "-", "-"] if c is None else [_ms(c.total_ms.p50), _ms(c.total_ms.p99), _share(c.cpu_share)]
+        row += ["-" if e is None or e.re_mean is None else f"{e.re_mean:.3f}",
+                "-" if e is None else f"{e.mae_mean:.3f}", "-" if b.manifest_re is None else f"{b.manifest_re:.3f}",
+                VERDICT_TEXT.get(b.verdict, b.verdict)]
+        rows.append(row)
     return head, rows
+
+
+def _measured_how(report: BenchReport) -> str:
+    """What the table's columns are, in one sentence (text table and report.md)."""
+    at = cadence_label(report)
+    ns = sorted({b.cadence.total_ms.n for b in report.bundles if b.cadence is not None})
+    b2b = (f"latency in ms through ForceRuntime, frames in contact, {report.threads} thread(s): stages and b2b "
+           f"total with frames back to back ({report.frames} frames)")
+    if at is None:
+        return b2b + f"; budget: total p99 <= {report.budget_ms:g} ms"
+    return (b2b + f"; {at}: frames arriving at the sensor's cadence, the source sleeping until each is due "
+            f"({'/'.join(str(n) for n in ns)} readings), CPU = process CPU time / wall time meanwhile (of one core); "
+            f"budget: total p99 at {at} <= {report.budget_ms:g} ms")
+
+
+def _missed_lines(report: BenchReport) -> list[str]:
+    return [f"{b.name}: {b.cadence.missed} frame(s) skipped at {b.cadence.fps:g} fps (the runtime was late for them; "
+            "no reading measured for them)" for b in report.bundles if b.cadence is not None and b.cadence.missed]
 
 
 def text_table(report: BenchReport) -> str:
@@ -374,15 +462,19 @@ def text_table(report: BenchReport) -> str:
     widths = [max(len(h), *(len(r[i]) for r in rows)) if rows else len(h) for i, h in enumerate(head)]
     out = ["  ".join(h.ljust(w) for h, w in zip(head, widths))]
     out += ["  ".join(c.ljust(w) for c, w in zip(r, widths)) for r in rows]
-    out.append(f"latency in ms through ForceRuntime, {report.frames} frames in contact, {report.threads} thread(s); "
-               f"budget: total p99 <= {report.budget_ms:g} ms")
+    out.append(_measured_how(report))
+    out += _missed_lines(report)
     for b in report.bundles:
         for i, a in enumerate(b.attempts, 1):
-            out.append(f"{b.name} attempt {i}: total p99 {_ms(a.total_p99_ms)} ms; {a.machine.line()}")
+            out.append(f"{b.name} attempt {i}: total p99 {_judged(b)}{_ms(a.total_p99_ms)} ms; {a.machine.line()}")
         if b.verdict == "TOO_FEW_READINGS":
             out.append(f"{b.name}: {b.note}")
     out.append(f"verdict: {VERDICT_TEXT.get(report.verdict, report.verdict)}")
     return "\n".join(out)
+
+
+def _judged(b: BundleResult) -> str:
+    return f"at {b.cadence.fps:g} fps " if b.cadence is not None else ""
 
 
 def markdown(report: BenchReport) -> str:
@@ -391,19 +483,19 @@ def markdown(report: BenchReport) -> str:
 
     head, rows = table_rows(report)
     m = report.machine
+    how = _measured_how(report)
     lines = ["# tactile-force bench", "", f"Command: `{report.command}`" if report.command else "",
              f"Commit: {source_commit()}", f"Machine: {m.line()}.",
              f"At start: {m.background_load}.", "",
-             f"Latency in ms through `ForceRuntime` (in-memory source, frames in contact, {report.threads} thread(s), "
-             f"{report.frames} frames); total = frame arrival -> reading. "
-             f"Budget: total p99 <= {report.budget_ms:g} ms. "
-             f"Verdict: **{VERDICT_TEXT.get(report.verdict, report.verdict)}**.", "",
+             f"{how[0].upper()}{how[1:]}. In-memory sources; total = frame arrival -> reading. "
+             f"Verdict: **{VERDICT_TEXT.get(report.verdict, report.verdict)}**.",
+             *([""] + [f"- {line}" for line in _missed_lines(report)] if _missed_lines(report) else []), "",
              "| " + " | ".join(head) + " |", "|" + "|".join("---" for _ in head) + "|"]
     lines += ["| " + " | ".join(r) + " |" for r in rows]
     for b in report.bundles:
         lines += ["", f"## {b.name}", "", f"Path: `{b.path}`." + (f" Note: {b.note}." if b.note else "")]
         for i, a in enumerate(b.attempts, 1):
-            lines.append(f"- attempt {i}: total p99 {_ms(a.total_p99_ms)} ms; {a.machine.line()}")
+            lines.append(f"- attempt {i}: total p99 {_judged(b)}{_ms(a.total_p99_ms)} ms; {a.machine.line()}")
         if b.error is not None:
             e = b.error
             lines += ["", f"Error on `{e.data}` (background `{e.background}`): {e.n} CNN readings of "
@@ -415,16 +507,20 @@ def markdown(report: BenchReport) -> str:
 
 
 def plot(report: BenchReport, path: Path) -> Path:
-    """Error against p99 latency, one point per bundle, the budget line (OpenCV)."""
+    """Error against the judged p99 latency (at the cadence when measured), one point per
+    bundle, its back-to-back p99 as a grey mark joined to it, the budget line (OpenCV)."""
     from tactile_force.edge.report.plots import ParetoPoint, error_vs_latency
 
     pts = []
     for b in report.bundles:
         measured = b.error is not None and b.error.re_mean is not None
         err = b.error.re_mean if measured and b.error is not None else b.manifest_re
-        pts.append(ParetoPoint(b.name, b.total_ms.p99 if b.total_ms.p99 is not None
-                               else math.nan, err, measured))
-    return error_vs_latency(pts, report.budget_ms, path, title=f"{report.machine.cpu}, {report.threads} thread(s)")
+        p99 = b.judged_ms.p99
+        pts.append(ParetoPoint(b.name, p99 if p99 is not None else math.nan, err, measured,
+                               b.total_ms.p99 if b.cadence is not None else None))
+    at = cadence_label(report)
+    title = f"{report.machine.cpu}, {report.threads} thread(s)" + (f", p99 at {at}" if at else "")
+    return error_vs_latency(pts, report.budget_ms, path, title=title, also="back to back")
 
 
 def write_json(path: Path, obj: object) -> Path:
@@ -450,7 +546,6 @@ def read_report(path: str | os.PathLike) -> BenchReport:
     return BenchReport.from_json(json.loads(Path(path).read_text()))
 
 
-__all__ = ["Attempt", "BenchError", "BenchReport", "BinError", "BundleResult", "Machine", "MachineState", "Timing",
-           "bench_bundle", "contact_frames", "markdown", "overall_verdict", "read_report", "replay_error",
-           "replay_readings",
-           "run_bench", "text_table", "write_report"]
+__all__ = ["Attempt", "BenchError", "BenchReport", "BinError", "BundleResult", "Cadence", "Machine", "MachineState",
+           "Timing", "bench_bundle", "contact_frames", "markdown", "overall_verdict", "read_report", "replay_error",
+           "replay_readings", "run_bench", "text_table", "write_report"]

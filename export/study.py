@@ -13,7 +13,8 @@ through the runtime on this host:
   MAE as ``run`` reports them; error vs fp32: the same readings against the fp32 bundle's, frame
   by frame;
 - latency: ``tactile-force bench``'s measurement (:func:`tactile_force.benchmarks.bench.bench_bundle`,
-  virtual DIGIT frames in contact from memory, one verdict attempt).
+  virtual DIGIT frames in contact from memory, one verdict attempt), back to back only (no run
+  at the sensor's cadence: the configurations are ranked against each other).
 
 Writes study.json (:class:`StudyReport`), study.md, pareto.png (error vs p99, the budget line)
 and the Pareto-front bundles under ``out/bundles/``; the recommended configuration is the most

@@ -10,7 +10,6 @@ install only: numpy, onnxruntime, OpenCV; never torch, onnx or matplotlib).
 - :mod:`.stats`: percentiles and Markdown tables;
 - :mod:`.data`: readers of the shared real sensor data, labelled frames as arrays;
 - :mod:`.cases`: a robustness case's outcome, the CLI run in-process;
-- :mod:`.poisson_port`: the copied DST-II Poisson solve the depth page compares against.
 
 Nothing here imports the docs pages, the bundle builders or the robustness suite.
 """

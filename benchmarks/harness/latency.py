@@ -2,7 +2,10 @@
 
 Each case runs the runtime (one sensor, its contact gate with a background captured from
 no-contact frames, the depth stage for depth variants, the model) over pre-rendered virtual
-DIGIT frames in contact, read from memory by :class:`~.sources.MemorySource`; stage times
+DIGIT frames in contact, read from memory by :class:`~.sources.MemorySource` (back to back:
+each frame arrives when the runtime asks for it) or, with ``fps``, by
+:class:`~.sources.PacedMemorySource` (frame i due at t0 + i / fps, the source sleeping until
+it is: the sensor's cadence, the core idle in between); stage times
 are the ones the runtime puts in every reading: source (read()), gate, depth, inference
 (the model's ``predict``), total (from the frame's arrival to the finished reading, what a
 user's ``total_ms`` shows) and glue = total - gate - depth - inference (the runtime's own
@@ -29,7 +32,7 @@ import cv2
 import numpy as np
 
 from .frames import FramePool, frame_pool, virtual_depth_stage
-from .sources import Clock, MemorySource
+from .sources import Clock, MemorySource, PacedMemorySource
 from .stats import Percentiles, percentiles
 
 STAGES = ("source", "gate", "depth", "inference", "total", "gate+inference", "glue")
@@ -91,7 +94,10 @@ class LatencyCase:
 @dataclass
 class LatencyResult:
     """Percentiles (ms) per stage, GMACs of the model (nan for the baseline), notes; bare:
-    the same graph in a bare onnxruntime session on the same frames (onnxruntime cases)."""
+    the same graph in a bare onnxruntime session on the same frames (onnxruntime cases).
+    ``cpu_share``: the process CPU time over the wall time of the measuring loop (1.0 = one
+    core busy throughout; several threads can exceed 1). ``missed``: frames a paced source
+    skipped because the reader was late for them (no reading measured for them)."""
 
     case: LatencyCase
     stages: dict[str, Percentiles]
@@ -100,6 +106,8 @@ class LatencyResult:
     bundle: str = ""
     samples: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
     bare: Percentiles | None = None
+    cpu_share: float = math.nan
+    missed: int = 0
 
     @property
     def overhead(self) -> float:
@@ -174,7 +182,7 @@ class BareOnnxRuntime:
 
 def measure(case: LatencyCase, pool: FramePool | None = None, clock: Clock = time.monotonic_ns,
             bare: bool = True, depth: Callable[[], object] | None = None, bare_bundle: Path | None = None,
-            predictor: Predictor | None = None) -> LatencyResult:
+            predictor: Predictor | None = None, fps: float | None = None) -> LatencyResult:
     """Run ``case`` through ``ForceRuntime`` over the frame pool (cycled) and return
     per-stage percentiles in ms.
 
@@ -185,7 +193,8 @@ def measure(case: LatencyCase, pool: FramePool | None = None, clock: Clock = tim
     pool : FramePool, optional
         Frames in contact (default :func:`~.frames.frame_pool`).
     clock : callable
-        The runtime's clock in ns (tests inject one).
+        The runtime's clock in ns (tests inject one; with ``fps`` it must be
+        ``time.monotonic_ns``, the paced source's clock).
     bare : bool
         Also time a graph in a bare onnxruntime session (onnxruntime cases), one bare run
         after every runtime step: the case's own graph, or ``bare_bundle``.
@@ -194,6 +203,10 @@ def measure(case: LatencyCase, pool: FramePool | None = None, clock: Clock = tim
         calibration, :func:`~.frames.virtual_depth_stage`).
     predictor : Predictor, optional
         The model the case runs (another engine than onnxruntime).
+    fps : float, optional
+        Frames per second: frames arrive at this cadence (:class:`~.sources.PacedMemorySource`,
+        sleeping until each is due) instead of back to back; the ``warmup + frames`` frames
+        then take ``(warmup + frames) / fps`` seconds.
     """
     from tactile_force.edge import ContactGate
     from tactile_force.edge.reading import Flags
@@ -203,13 +216,18 @@ def measure(case: LatencyCase, pool: FramePool | None = None, clock: Clock = tim
         raise ValueError(f"LatencyCase.engine={case.engine!r}; expected one of {ENGINES}")
     if predictor is None and case.engine != "onnxruntime":
         raise ValueError(f"LatencyCase.engine={case.engine!r} needs a predictor (a Predictor of that engine)")
+    if fps is not None and not (math.isfinite(fps) and fps > 0):
+        raise ValueError(f"measure: fps={fps!r}; expected a finite number > 0")
+    if fps is not None and clock is not time.monotonic_ns:
+        raise ValueError("measure: fps with an injected clock; a paced source stamps frames with time.monotonic_ns")
     pool = pool or frame_pool()
     cv2.setNumThreads(case.threads)
     p = predictor or bundle_predictor(case)
     gate = ContactGate()
     gate.capture_background(pool.background)
     n_total = case.warmup + case.frames
-    source = MemorySource(pool.rgb, n_total, clock)
+    source = (MemorySource(pool.rgb, n_total, clock) if fps is None
+              else PacedMemorySource(pool.rgb, fps, n_total, name="bench"))
     rt = ForceRuntime([Sensor("bench", source, gate)], p.model,
                       RuntimeOptions(threads=case.threads, deadline_ms=1e9, latency_window=16),
                       clock=clock, depth_factory=(depth or virtual_depth_stage) if case.needs_depth else None)
@@ -227,6 +245,7 @@ def measure(case: LatencyCase, pool: FramePool | None = None, clock: Clock = tim
     bare_runner = BareOnnxRuntime(case, pool, bare_bundle) if bare and case.engine == "onnxruntime" else None
     bare_ms = np.full(n_total, np.nan)
     i = 0
+    cpu0, wall0 = time.process_time(), time.perf_counter()
     while not rt.finished:
         for r in rt.step():
             keep(r)
@@ -235,6 +254,7 @@ def measure(case: LatencyCase, pool: FramePool | None = None, clock: Clock = tim
             bare_runner.run(i)
             bare_ms[i] = (time.perf_counter_ns() - t0) / 1e6
         i += 1
+    cpu_s, wall_s = time.process_time() - cpu0, time.perf_counter() - wall0
     rt.close()
     t = lat[case.warmup:]
     samples = {
@@ -246,9 +266,10 @@ def measure(case: LatencyCase, pool: FramePool | None = None, clock: Clock = tim
     }
     samples["gate+inference"] = samples["gate"] + samples["inference"]
     samples["glue"] = samples["total"] - samples["gate"] - samples["inference"] - np.nan_to_num(samples["depth"])
-    n_contact = int(contact.sum())
+    n_contact, n_read = int(contact.sum()), int(np.isfinite(lat[:, 4]).sum())
     note = p.note
-    if n_contact < n_total:
-        note = (note + f"; gate open on {n_contact}/{n_total} frames").strip("; ")
+    if n_contact < n_read:
+        note = (note + f"; gate open on {n_contact}/{n_read} frames").strip("; ")
     b = percentiles(bare_ms[case.warmup:]) if bare_runner is not None else None
-    return LatencyResult(case, {k: percentiles(v) for k, v in samples.items()}, p.gmacs, note, p.where, samples, b)
+    return LatencyResult(case, {k: percentiles(v) for k, v in samples.items()}, p.gmacs, note, p.where, samples, b,
+                         cpu_s / wall_s if wall_s > 0 else math.nan, int(source.stats.dropped))

@@ -215,12 +215,15 @@ def force_vs_time(t_s: np.ndarray, estimate_n: np.ndarray, truth_n: np.ndarray |
 class ParetoPoint:
     """One model on an error-vs-latency plot: ``label``, p99 latency (ms), error (e.g. mean
     RE; None when not measured) and whether the error was measured here (False: taken from
-    the bundle's manifest, drawn as a ring)."""
+    the bundle's manifest, drawn as a ring); ``also_ms``: the same model's p99 measured
+    another way (ms; e.g. ``bench``'s back-to-back figure beside the one at the cadence),
+    drawn as a grey mark joined to the point, or None."""
 
     label: str
     p99_ms: float
     error: float | None
     measured: bool = True
+    also_ms: float | None = None
 
 
 def pareto_front(points: Sequence[ParetoPoint]) -> list[int]:
@@ -240,7 +243,8 @@ def pareto_front(points: Sequence[ParetoPoint]) -> list[int]:
 
 
 def error_vs_latency(points: Sequence[ParetoPoint], budget_ms: float | None, path: str | os.PathLike,
-                     ylabel: str = "mean relative error (RE)", title: str = "", numbered: bool = False) -> Path:
+                     ylabel: str = "mean relative error (RE)", title: str = "", numbered: bool = False,
+                     also: str = "measured another way") -> Path:
     """Error against p99 latency, one point per model, the Pareto front joined by a line
     and the latency budget as a dashed vertical line.
 
@@ -258,6 +262,8 @@ def error_vs_latency(points: Sequence[ParetoPoint], budget_ms: float | None, pat
     numbered : bool
         Label the points 1, 2, ... (their order in ``points``) instead of by name, for many
         points (the caller lists the numbers, e.g. a table's ``#`` column).
+    also : str
+        What the points' ``also_ms`` p99 is, for the legend (e.g. ``"back to back"``).
 
     Returns
     -------
@@ -266,7 +272,10 @@ def error_vs_latency(points: Sequence[ParetoPoint], budget_ms: float | None, pat
     """
     unmeasured = [str(i + 1) if numbered else p.label for i, p in enumerate(points)
                   if not math.isfinite(p.p99_ms)]  # no latency: named, not drawn
-    xs = [p.p99_ms for p in points if math.isfinite(p.p99_ms)] + ([budget_ms] if budget_ms is not None else [])
+    others = [(p.also_ms, p.error) for p in points
+              if p.also_ms is not None and math.isfinite(p.also_ms) and p.error is not None and math.isfinite(p.p99_ms)]
+    xs = ([p.p99_ms for p in points if math.isfinite(p.p99_ms)] + [x for x, _ in others]
+          + ([budget_ms] if budget_ms is not None else []))
     ys = [p.error for p in points if p.error is not None and math.isfinite(p.p99_ms)]
     c = Canvas(_range(xs, floor=0.0), _range(ys, floor=0.0) if ys else (0.0, 1.0), "p99 latency (ms)", ylabel,
                size=(900, 420))
@@ -283,6 +292,10 @@ def error_vs_latency(points: Sequence[ParetoPoint], budget_ms: float | None, pat
             c.cv2.drawMarker(c.img, (px, py - 6), GREY, c.cv2.MARKER_TILTED_CROSS, 10, 2)
             c.text(p.p99_ms, c.ylim[0] + 0.03 * (c.ylim[1] - c.ylim[0]), label, GREY)
             continue
+        if p.also_ms is not None and math.isfinite(p.also_ms):
+            c.line([p.also_ms, p.p99_ms], [p.error, p.error], GREY, 1)
+            px, py = c.xy(p.also_ms, p.error)
+            c.cv2.drawMarker(c.img, (px, py), GREY, c.cv2.MARKER_DIAMOND, 9, 2)
         c.points([p.p99_ms], [p.error], BLUE, 5, filled=p.measured)
         c.text(p.p99_ms, p.error, label)
     if title:
@@ -290,6 +303,8 @@ def error_vs_latency(points: Sequence[ParetoPoint], budget_ms: float | None, pat
     legend = "green: Pareto front"
     if any(not p.measured for p in points if p.error is not None):
         legend += "   ring: error from the bundle's manifest"
+    if others:
+        legend += f"   grey diamond: p99 {also}"
     if any(p.error is None for p in points):
         legend += "   cross: no error"
     c.legend(legend)

@@ -26,7 +26,9 @@ from tactile_force.benchmarks.harness.machine import MachineState
 from tactile_force.edge.cli import main
 from tactile_force.edge.scene import shipped_bundles, default_bundle_path
 
-FAST = ["--frames", "100", "--repeats", "1"]
+# 200 fps keeps the cadence run short (150 frames with the warm-up: 0.75 s per bundle); 120
+# readings leave room for a few frames a busy test machine is late for above the 100 a p99 needs
+FAST = ["--frames", "100", "--fps", "200", "--cadence-frames", "120", "--repeats", "1"]
 
 
 @pytest.fixture(scope="module")
@@ -57,8 +59,14 @@ def test_report_json_is_the_documented_contract(tmp_path, capsys):
     assert {"gate", "inference", "total"} <= b["stages_ms"].keys() and "depth" not in b["stages_ms"]
     assert b["error"] is None and b["variant"] == "rgbmod" and b["precision"] == "int8-static"
     assert Path(b["path"]) == default_bundle_path()
+    c = b["cadence"]
+    assert {"fps", "total_ms", "cpu_share"} <= c.keys() and c["fps"] == 200.0
+    assert {"p50", "p90", "p99", "mean", "n"} <= c["total_ms"].keys() and 0 < c["total_ms"]["n"] <= 120
+    assert 0 < c["cpu_share"] <= 1
     report = read_report(out / REPORT_JSON)  # parses into the typed dataclasses
     assert isinstance(report, BenchReport) and report.bundles[0].total_ms.n == 100
+    assert report.to_json() == raw  # the cadence record round-trips
+    assert all(x.attempts[-1].total_p99_ms == x.cadence.total_ms.p99 for x in report.bundles if x.cadence)
     assert (rc == 0) == report.passed
     assert (out / "report.md").read_text().startswith("# tactile-force bench")
     import cv2
@@ -66,6 +74,81 @@ def test_report_json_is_the_documented_contract(tmp_path, capsys):
     assert cv2.imread(str(out / "pareto.png")) is not None
     printed = capsys.readouterr().out
     assert "verdict:" in printed and report.bundles[0].name in printed
+    assert "200 fps total p99" in printed and "200 fps total p99" in (out / "report.md").read_text()
+
+
+def _report_raw(cadence: dict | None) -> dict:
+    t = {"p50": 0.4, "p90": 0.5, "p99": 0.6, "mean": 0.42, "n": 1000}
+    bundle = {"path": "b", "name": "b", "variant": "rgbmod", "precision": "int8-static", "total_ms": t,
+              "stages_ms": {"total": t}, "error": None, "manifest_re": None, "verdict": "PASS", "attempts": [],
+              "note": ""}
+    if cadence is not None:
+        bundle["cadence"] = cadence
+    return {"schema": "tactile-force-bench/1", "budget_ms": 1.0, "threads": 1, "frames": 1000, "verdict": "PASS",
+            "machine": {"cpu": "x", "cores": 1, "ram_gib": None, "os": "", "python": "", "versions": "",
+                        "background_load": ""}, "bundles": [bundle], "command": ""}
+
+
+def test_the_cadence_record_round_trips_and_an_older_report_still_reads():
+    from tactile_force.benchmarks.bench import Cadence, Timing
+    from tactile_force.edge.typed_json import TypedJsonError
+
+    cadence = {"fps": 60.0, "total_ms": {"p50": 0.8, "p90": 0.9, "p99": 1.2, "mean": 0.82, "n": 300},
+               "cpu_share": 0.07, "missed": 2}
+    raw = _report_raw(cadence)
+    r = BenchReport.from_json(raw)
+    assert r.bundles[0].cadence == Cadence(60.0, Timing(0.8, 0.9, 1.2, 0.82, 300), 0.07, 2)
+    assert r.bundles[0].judged_ms.p99 == 1.2 and r.to_json() == raw
+    old = BenchReport.from_json(_report_raw(None))  # written before the cadence was measured
+    assert old.bundles[0].cadence is None and old.bundles[0].judged_ms.p99 == 0.6
+    with pytest.raises(TypedJsonError, match=r"cadence\.fps"):
+        BenchReport.from_json(_report_raw({**cadence, "fps": 0}))
+
+
+@pytest.mark.parametrize("value, expected", [("0", "expected a finite number > 0"),
+                                             ("nan", "expected a finite number > 0"),
+                                             ("-60", "expected a finite number > 0"),
+                                             ("x", "'x' is not a number")])
+def test_a_bad_fps_exits_2_naming_the_flag(tmp_path, capsys, value, expected):
+    assert main(["bench", "--fps", value, "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "argument --fps" in err and expected in err and "Traceback" not in err
+    assert not (tmp_path / "o").exists()
+
+
+def test_bench_measures_at_the_cadence_with_the_paced_source_and_judges_that(monkeypatch):
+    """Each attempt reads frames from a paced source at --fps; the verdict rests on those
+    readings (their count and their p99), not on the back-to-back ones."""
+    import tactile_force.benchmarks.harness.latency as latency
+    from tactile_force.benchmarks.bench import bench_bundle
+
+    made = []
+
+    class Paced(latency.PacedMemorySource):
+        def __init__(self, *args, **kwargs) -> None:
+            super().__init__(*args, **kwargs)
+            made.append(self)
+
+    monkeypatch.setattr(latency, "PacedMemorySource", Paced)
+    pool = contact_frames(8)
+    # too few back-to-back readings for a p99, enough at the cadence: judged at the cadence
+    r = bench_bundle(default_bundle_path(), pool, frames=5, warmup=5, repeats=1, budget_ms=1000.0,
+                     window=_Window([False]), fps=200.0, cadence_frames=120)
+    assert [(s.n, s.period) for s in made] == [(125, 5_000_000)]
+    c = r.cadence
+    assert c is not None and c.fps == 200.0 and 0 < c.cpu_share <= 1
+    assert c.total_ms.n <= 120 <= c.total_ms.n + c.missed and r.total_ms.n == 5
+    assert len(r.attempts) == 1 and r.attempts[0].total_p99_ms == c.total_ms.p99 == r.judged_ms.p99
+    assert r.verdict == "PASS"  # 1 s budget: passes on the cadence's >= 100 readings, never on 5
+    # and the other way round: plenty back to back, too few at the cadence
+    few = bench_bundle(default_bundle_path(), pool, frames=120, warmup=5, repeats=1, budget_ms=1000.0,
+                       window=_Window([False]), fps=200.0, cadence_frames=5)
+    assert few.verdict == "TOO_FEW_READINGS" and few.cadence is not None and few.cadence.total_ms.n <= 5
+    # study's use: no fps, back to back only and judged so
+    made.clear()
+    b2b = bench_bundle(default_bundle_path(), pool, frames=120, warmup=5, repeats=1, budget_ms=1000.0,
+                       window=_Window([False]))
+    assert made == [] and b2b.cadence is None and b2b.verdict == "PASS"
 
 
 def test_a_wrong_report_is_refused_naming_the_field(tmp_path):
@@ -131,7 +214,8 @@ def test_bench_needs_no_torch_onnx_or_matplotlib(tmp_path):
             "import tactile_force.benchmarks.harness.latency, tactile_force.benchmarks.harness.machine\n"
             "import tactile_force.edge.cli.bench, tactile_force.edge.report.plots\n"
             "from tactile_force.edge.cli import main\n"
-            f"rc = main(['bench', '--frames', '10', '--repeats', '1', '--out', {str(tmp_path / 'o')!r}])\n"
+            "rc = main(['bench', '--frames', '10', '--fps', '200', '--cadence-frames', '10', '--repeats', '1', "
+            f"'--out', {str(tmp_path / 'o')!r}])\n"
             "print(json.dumps([rc, sorted(m for m in sys.modules if m.split('.')[0] in "
             "('torch', 'onnx', 'matplotlib') and sys.modules[m] is not None)]))\n")
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
@@ -194,7 +278,8 @@ def test_overall_verdict():
 
 def test_too_few_readings_give_no_verdict(tmp_path, capsys):
     out = tmp_path / "b"
-    rc = main(["bench", "--frames", "5", "--repeats", "1", "--bundle", str(default_bundle_path()),
+    rc = main(["bench", "--frames", "5", "--fps", "200", "--cadence-frames", "5", "--repeats", "1",
+               "--bundle", str(default_bundle_path()),
                "--budget-ms", "1000", "--out", str(out)])
     assert rc == 1  # no verdict: never PASS from 5 readings, however fast
     r = read_report(out / REPORT_JSON)

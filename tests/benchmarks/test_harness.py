@@ -83,6 +83,19 @@ def test_measure_through_the_runtime_with_a_fake_clock():
     assert "gate open" not in res.note  # every rendered frame is in contact
 
 
+def test_measure_at_a_cadence_refuses_a_bad_fps_or_an_injected_clock():
+    """A paced source stamps frames with time.monotonic_ns: a fake runtime clock would mix two
+    time bases, so it is refused, as is an fps that is no finite positive number."""
+    from tactile_force.edge.scene import default_bundle_path
+
+    case = LatencyCase(ModelConfig("rgbmod", 0.25, 4), "int8-static", frames=2, warmup=0, bundle=default_bundle_path())
+    with pytest.raises(ValueError, match="injected clock"):
+        measure(case, None, clock=lambda: 0, bare=False, fps=60.0)
+    for fps in (0.0, math.nan, math.inf):
+        with pytest.raises(ValueError, match="fps"):
+            measure(case, None, bare=False, fps=fps)
+
+
 def test_memory_source_stamps_arrival_and_ends():
     from benchmarks.harness.sources import MemorySource
 

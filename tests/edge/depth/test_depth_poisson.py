@@ -56,7 +56,7 @@ def test_buffers_reused_and_shape_checked():
 
 def test_dst2_port_overshoots_where_exact_does_not():
     """The digit-depth/PyTouch port (DST-II, pi k/(n+2)) overshoots a 20 px cap."""
-    from benchmarks.harness.poisson_port import port_solve
+    from tests.edge.depth.poisson_port import port_solve
 
     h = SHAPES["20 px cap"]
     gx, gy = forward_gradients(h)

@@ -43,6 +43,15 @@ def test_error_vs_latency_draws_points_and_the_budget_line(tmp_path):
     assert red_cols.size and 70 + 0.3 * 810 < red_cols.mean() < 70 + 0.45 * 810
 
 
+def test_a_second_p99_is_drawn_as_a_grey_mark_joined_to_its_point(tmp_path):
+    """bench: the p99 at the cadence is the point, the back-to-back p99 a grey diamond beside it."""
+    pts = [ParetoPoint("default", 0.9, 0.08), ParetoPoint("d", 1.4, 0.13)]
+    plain = cv2.imread(str(error_vs_latency(pts, 1.0, tmp_path / "a.png")))
+    both = cv2.imread(str(error_vs_latency([ParetoPoint(p.label, p.p99_ms, p.error, also_ms=p.p99_ms / 2)
+                                            for p in pts], 1.0, tmp_path / "b.png", also="back to back")))
+    assert _ink(both, (60, 60, 60), 20) > _ink(plain, (60, 60, 60), 20) + 40
+
+
 def test_calibration_plot(tmp_path):
     t = np.linspace(1, 14, 20)
     path = calibration_plot(t, t * 1.2 + 0.5, t + 0.1, np.array([0.0, 17.3]), np.array([0.0, 14.0]),

@@ -1,5 +1,5 @@
 """The Poisson solve widely copied across digit-depth / PyTouch / tactile-in-hand, restated for
-comparison with the depth stage's exact solver (docs/depth_benchmark.md)."""
+comparison with the depth stage's exact solver (test_depth_poisson.py; the timing: docs/depth_benchmark.md)."""
 
 from __future__ import annotations
 
