@@ -525,9 +525,10 @@ def plot(report: BenchReport, path: Path) -> Path:
 
 def write_json(path: Path, obj: object) -> Path:
     """``obj`` as indented JSON at ``path``, replaced atomically (a reader never sees half a file)."""
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_text(json.dumps(obj, indent=2) + "\n")
-    os.replace(tmp, path)
+    from tactile_force.edge.files.atomic import staged_file
+
+    with staged_file(path) as tmp:
+        tmp.write_text(json.dumps(obj, indent=2) + "\n")
     return path
 
 

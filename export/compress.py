@@ -319,9 +319,10 @@ def _figures(pred: np.ndarray, ref: np.ndarray) -> dict:
 
 
 def _write_json(path: Path, obj: object) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(json.dumps(obj, indent=2, default=float))
-    os.replace(tmp, path)
+    from tactile_force.edge.files.atomic import staged_file
+
+    with staged_file(path) as tmp:
+        tmp.write_text(json.dumps(obj, indent=2, default=float))
 
 
 def compress_model(o: CompressOptions) -> CompressResult:

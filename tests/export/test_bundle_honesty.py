@@ -1,5 +1,4 @@
-"""Every bundle carries what its honesty checks need, and compress decides robustly (issue 19,
-Builds 3 and 7): export, quantize and compress record ``data_stats`` from the frames they see
+"""Every bundle carries what its honesty checks need, and compress decides robustly: export, quantize and compress record ``data_stats`` from the frames they see
 (or say loudly that the checks are off); a compressed student run on another sensor's frames
 (GelSight Wedge) is flagged ``out_of_distribution``; a student too far from its teacher is not
 written as the result.

@@ -71,7 +71,7 @@ def _head_ops(path, upto="Conv"):
 
 def test_folded_graph_is_transpose_cast_conv_and_gives_the_same_forces(pair, aurova):
     folded, plain = pair
-    # the graph starts at the network resolution: the frame's 4x4 reduction is outside (issue 18)
+    # the graph starts at the network resolution: the frame's 4x4 reduction is outside
     assert _head_ops(folded.onnx_path) == ["Transpose", "Cast", "Conv"]
     assert {"Slice", "Div"} <= set(_head_ops(plain.onnx_path))
     g = onnx.load(str(folded.onnx_path)).graph

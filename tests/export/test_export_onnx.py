@@ -94,7 +94,7 @@ def test_authors_depth_checkpoints_export_with_parity_on_real_depth_images(modul
     m = b.manifest
     assert m.parity.max_abs_diff_n <= 1e-4 and m.parity.frames == 11
     assert [s.name for s in m.inputs] == (["depth"] if variant == "d" else ["rgb", "depth"])
-    # a 1/4 input scale: the graph starts at the network resolution (issue 18)
+    # a 1/4 input scale: the graph starts at the network resolution
     assert m.inputs[-1].shape == [-1, 80, 60, 1] and m.inputs[-1].colour_order == "GRAY"
     assert m.inputs[-1].reduction.factor == 4
     assert m.needs_depth

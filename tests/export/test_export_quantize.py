@@ -80,7 +80,7 @@ def test_int8_static_runs_integer_convolutions_and_keeps_float_output(int8):
     # exported with the BGR flip and 1/255 folded into conv1 (the default): that conv is quantized like the rest
     assert int8.manifest.architecture.preprocess_folded and ran["Slice"] == 0 and ran["Div"] == 0
     first = next(n for n in model.graph.node if n.op_type == "Conv")
-    # the graph starts at the network resolution (issue 18): uint8 input -> Transpose -> Cast -> Q -> DQ -> conv1
+    # the graph starts at the network resolution: uint8 input -> Transpose -> Cast -> Q -> DQ -> conv1
     assert producers[producers[producers[first.input[0]].input[0]].input[0]].op_type == "Cast"
     assert not any(n.op_type == "AveragePool" for n in model.graph.node)
     # the final linear layer stays float: its inputs are DequantizeLinear'd, its output is not re-quantized

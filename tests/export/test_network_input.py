@@ -1,4 +1,4 @@
-"""Issue 18: training and export reduce frames exactly as the runtime does; compact exports
+"""Training and export reduce frames exactly as the runtime does; compact exports
 start at the network resolution."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Inputs are never destroyed (issue 19, Build 2): no verb deletes or replaces an input
+"""Inputs are never destroyed: no verb deletes or replaces an input
 (source bundle, checkpoint, presses folder, anything in them, a folder holding them),
 ``--force`` included; an existing output needs ``--force``; special files are refused at
 once. Each case is the user's command through the real CLI; the inputs are checked

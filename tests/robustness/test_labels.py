@@ -1,4 +1,4 @@
-"""Force labels and meta.jsonl: one reader, the same verdict everywhere (issue 11).
+"""Force labels and meta.jsonl: one reader, the same verdict everywhere.
 
 The dataset reader and quantize --calib refuse a bad label with a LabelError naming the file;
 the replay source never dies on one: it logs one warning per bad file and yields truth None.

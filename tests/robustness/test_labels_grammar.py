@@ -1,4 +1,4 @@
-"""Labels validated where they enter (issue 19, Build 4): one grammar (a decimal comma or a
+"""Labels validated where they enter: one grammar (a decimal comma or a
 unit is an error naming the file), a FIFO label refused without blocking, duplicated or
 colliding presses and non-PNG presses refused naming the files, labels that look like
 another unit warned about. Through edge/data/labels.py, the dataset reader and calibrate-force."""

@@ -1,4 +1,4 @@
-"""MCAP logs survive their process (issue 19, Build 6): a real ``tactile-force run --out
+"""MCAP logs survive their process: a real ``tactile-force run --out
 x.mcap`` (with a CSV beside it as the record of what was written) stopped by SIGTERM,
 SIGINT or kill -9, then read back with the ``mcap`` library's own readers:
 ``make_reader(f).iter_messages()`` (seeking) and ``NonSeekingReader(f).iter_messages()``

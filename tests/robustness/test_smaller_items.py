@@ -1,4 +1,4 @@
-"""The smaller findings of issue 19, each through the real CLI: --max-frames 0, a bad scene
+"""Smaller findings, each through the real CLI: --max-frames 0, a bad scene
 topic at ``scene show``, a 640x480 --background, a depth bundle run from flags without a
 mapping, and number flags that must refuse nan/inf when parsed."""
 

@@ -1,4 +1,4 @@
-"""``bundle verify`` checks what the graph really holds (issue 19, Build 5): the manifest's
+"""``bundle verify`` checks what the graph really holds: the manifest's
 precision against the graph's op types and weight types (without the ``onnx`` package, as on
 the robot), and refuses files that resolve outside the bundle (symbolic links)."""
 

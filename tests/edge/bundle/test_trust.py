@@ -1,4 +1,4 @@
-"""Honest readings on real sensors (issue 14), through the public API: ContactGate +
+"""Honest readings on real sensors, through the public API: ContactGate +
 ForceRuntime + the embedded default bundle, on the shared real frames.
 
 The truth of every adversarial frame below is "no contact or cannot be judged": a reading

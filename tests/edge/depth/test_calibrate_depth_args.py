@@ -1,4 +1,4 @@
-"""calibrate-depth refuses impossible radii and scales (issue 19, Build 4): a radius or scale
+"""calibrate-depth refuses impossible radii and scales: a radius or scale
 that is 0, negative or not finite exits 2 at parse time and writes nothing; contact circles
 that cannot belong to a ball of that size at that scale (a 10x wrong --px-per-mm, which used
 to report a *lower* held-out error) exit 2 naming the flags."""

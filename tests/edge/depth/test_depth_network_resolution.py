@@ -1,4 +1,4 @@
-"""Depth at the network resolution (issue 18, item 3): colour -> normal and the exact DST-I
+"""Depth at the network resolution: colour -> normal and the exact DST-I
 solve on the frame reduced to the network input (80 x 60 for 1/4), heights in full-resolution
 pixels (DepthOptions, Notes).
 

@@ -1,4 +1,4 @@
-"""Every reading carries its error bar (issue 21): the conformal interval, its manifest
+"""Every reading carries its error bar: the conformal interval, its manifest
 record, the runtime applying it, and every output that carries it.
 
 The coverage tests are statistical with fixed seeds; their tolerance is derived from the

@@ -1,4 +1,4 @@
-"""Issue 18: the contact gate's per-frame path allocates no image buffers once warm (every
+"""The contact gate's per-frame path allocates no image buffers once warm (every
 buffer it works in is allocated with its first frame), measured with tracemalloc on real
 OpenCV and virtual DIGIT frames in and out of contact."""
 

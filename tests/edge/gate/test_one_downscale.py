@@ -1,4 +1,4 @@
-"""Issue 18: one downscale per frame, shared by the gate and the model (real ONNX Runtime,
+"""One downscale per frame, shared by the gate and the model (real ONNX Runtime,
 real OpenCV, the shipped default bundle and the c1733e6 reference graph kept as a format-2
 bundle)."""
 

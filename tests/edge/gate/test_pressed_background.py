@@ -1,4 +1,4 @@
-"""A background given to the runtime is checked for a press (issue 19, Build 3): an 11.9 N
+"""A background given to the runtime is checked for a press: an 11.9 N
 frame of the AUROVA grasp given as ``--background`` is warned about loudly and the readings
 it would turn into "no contact, 0 N" are flagged ``background_mismatch`` with no force.
 

@@ -1,4 +1,4 @@
-"""One model, several users (issue 19, Build 1): an OnnxForceModel shared by two ForceRuntimes
+"""One model, several users: an OnnxForceModel shared by two ForceRuntimes
 stepped in two threads gives every reading its own answer; who closes a model is explicit;
 a closed model, and a runtime after close(), raise clear errors; RuntimeOptions are checked.
 

@@ -1,5 +1,5 @@
 """Paper depth mode: when the gate re-learns its background after a background_mismatch, the
-depth stage's zero-depth reference follows (issue 13). Real AUROVA frames and background, the
+depth stage's zero-depth reference follows. Real AUROVA frames and background, the
 real gate, depth stage (the shared paper MLP) and ONNX Runtime model, run from a scene file."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Frames and contact masks from a run into the MCAP log (issue 13): a real replay of the shared
+"""Frames and contact masks from a run into the MCAP log: a real replay of the shared
 AUROVA frames, the real gate and ONNX Runtime model, a real MCAP file read back."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""A force calibration knows the sensor it was fitted on (issue 19, Build 3): its serial when
+"""A force calibration knows the sensor it was fitted on: its serial when
 known and a fingerprint of its no-contact look; the runtime flags contact readings of another
 sensor ``out_of_distribution`` with a detail naming the mismatch.
 

@@ -1,4 +1,4 @@
-"""The scene's `digit` kind follows unplug / replug through udev events (issue 13): a fake
+"""The scene's `digit` kind follows unplug / replug through udev events: a fake
 libudev and fake V4L2 cameras at the hardware boundary (tests/bridge/fake_udev.py), the real
 scene parsing, build_scene, UdevWatcher, HotplugSource, DigitSource, gates, ONNX Runtime model
 and ForceRuntime above them."""

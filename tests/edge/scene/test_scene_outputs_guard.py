@@ -1,6 +1,6 @@
 """A scene file's file outputs go through the output guard like ``run --out``: an existing
 readings file is refused without ``--force`` (exit 2, naming the scene key), and an output
-that would replace one of the scene's inputs is refused even with it (issue 19)."""
+that would replace one of the scene's inputs is refused even with it."""
 
 from __future__ import annotations
 
