@@ -49,7 +49,8 @@ def configure(p: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
 
-    from .study import StudyError, StudyOptions, prepare_source, run_study, table
+    from .study import StudyError, StudyOptions, prepare_source, run_study
+    from .study_report import table
 
     if args.sensitivity_nodes is not None and args.sensitivity_nodes < 0:
         raise StudyError(f"--sensitivity-nodes {args.sensitivity_nodes}: expected >= 0")
