@@ -169,6 +169,7 @@ class ContactGate:
         # matrix cv2.transform applies; _gain (its diagonal) and _offset (its last column) are
         # views into it, so the fit writes the matrix directly.
         self._M = np.zeros((3, 4), np.float32)
+        self._M_keep = np.empty_like(self._M)  # prewarm() restores the model from it
         self._gain = self._M.reshape(-1)[::5]
         self._offset = self._M[:, 3]
         self._gain[:] = 1.0
@@ -178,6 +179,8 @@ class ContactGate:
         self._given = 0  # live frames still to check against a background given at start
         self._given_origin = ""
         self._reduced_for: np.ndarray | None = None  # the frame reduce() was called for
+        self._last_frame: np.ndarray | None = None  # the last frame prepared (prewarm() reuses it)
+        self._fit_frac = 1.0  # share of thumbnail cells the photometric model fits
         self._reduction: FrameReduction | None = None
         self.relearned = 0  # how many times the background was re-learnt after a mismatch
         #: the first full-resolution frame given to :meth:`capture_background` (HxWx3 uint8 BGR;
@@ -325,7 +328,30 @@ class ContactGate:
         r.offset = tuple(self._offset.tolist())
         return r
 
-    # -- stages of update (separate so benchmarks/one_downscale.py can time each) --------
+    def prewarm(self) -> None:
+        """Run the per-frame work of :meth:`update` once more on the last frame gated, into
+        the gate's scratch buffers, and throw the result away: the background, the
+        photometric model, the contact state and the mismatch state stay as they were (the
+        runtime calls it shortly before a frame is due at a slow cadence, so the frame finds
+        caches warm: edge/runtime/prewarm.py). Like :meth:`update` it overwrites the buffers
+        of the last :class:`GateResult` (its mask, thumbnail and reduced image). Nothing
+        happens before the background is known. Right after :meth:`reduce` of the last frame
+        (the runtime judges its exposure first) the frame is not reduced again."""
+        arr = self._last_frame
+        if self._bg is None or arr is None:
+            return
+        keep = self._M_keep
+        np.copyto(keep, self._M)
+        fit_frac = self._fit_frac
+        work, thumb = self._prepare(arr)
+        self._fit_thumb(thumb)
+        self._changed(work)
+        self._blobs()
+        self._noise(work)
+        np.copyto(self._M, keep)
+        self._fit_frac = fit_frac
+
+    # -- stages of update (separate so each can be timed) ---------------------------------
     def _fit_thumb(self, thumb: np.ndarray) -> None:
         """The photometric fit (gain/offset) of the frame's thumbnail to the background's."""
         np.copyto(self._thumb_f, thumb, casting="unsafe")
@@ -490,6 +516,7 @@ class ContactGate:
         """The recovery policy (edge/gate/learning.py) says re-learn: the live frame is the
         new background now."""
         reason = self._policy.reason
+        assert self._last_frame is not None  # the frame being judged
         self.capture_background([self._last_frame])
         self.relearned += 1
         self._relearned_now = True
@@ -504,6 +531,7 @@ class ContactGate:
         if self._sub is None:
             cv2.absdiff(self._small, work, dst=self._noise_d)
         else:
+            assert self._last_frame is not None  # set with the frame prepared
             cv2.resize(self._last_frame, (self._sub.shape[1], self._sub.shape[0]), dst=self._sub,
                        interpolation=cv2.INTER_NEAREST)
             b = self.options.blur

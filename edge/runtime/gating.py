@@ -50,12 +50,24 @@ class GateStep:
         except FrameError as exc:
             self.problem = str(exc)
             return None
-        gate = self.gate
-        # The frame's one downscale happens here when the gate works reduced: exposure is judged
-        # on that image (box averages keep the mean), the gate and the model then read it too.
-        problem = exposure_problem(gate.reduce(frame) if gate.reduction.factor > 1 else frame)
+        problem = self._exposure(frame)
         if problem:
             self.problem = f"{self.name} frame {tf.index}: {problem} (LEDs off, lens covered?)"
             return None
         self.frame = frame
-        return gate.update(frame)
+        return self.gate.update(frame)
+
+    def _exposure(self, frame: np.ndarray) -> str | None:
+        # The frame's one downscale happens here when the gate works reduced: exposure is judged
+        # on that image (box averages keep the mean), the gate and the model then read it too.
+        gate = self.gate
+        return exposure_problem(gate.reduce(frame) if gate.reduction.factor > 1 else frame)
+
+    def prewarm(self) -> None:
+        """The work of :meth:`run` once more on the last frame gated (its exposure, then
+        :meth:`ContactGate.prewarm`), results thrown away and no state changed: the runtime
+        calls it shortly before a frame is due at a slow cadence (edge/runtime/prewarm.py)."""
+        frame = self.frame
+        if frame.size and self.gate.background_ready:
+            self._exposure(frame)
+            self.gate.prewarm()

@@ -98,11 +98,12 @@ class Grabbers:
             return self._cond.wait_for(lambda: self._failure is not None
                                        or all(self._slots[s.name] is not None for s in live), timeout_s)
 
-    def take(self, live: Sequence[S]) -> list[tuple[S, Read]]:
-        """Every live sensor's waiting read (at least one), in sensor order."""
+    def take(self, live: Sequence[S], timeout_s: float | None = None) -> list[tuple[S, Read]]:
+        """Every live sensor's waiting read, in sensor order: at least one, or none when
+        ``timeout_s`` seconds passed first (None: wait as long as it takes)."""
         with self._cond:
             self._cond.wait_for(lambda: self._failure is not None
-                                or any(self._slots[s.name] is not None for s in live))
+                                or any(self._slots[s.name] is not None for s in live), timeout_s)
             if self._failure is not None:
                 raise self._failure
             got = []

@@ -77,6 +77,7 @@ from .options import (
     frame_sinks,
     shares_reduction,
 )
+from .prewarm import Prewarm
 from .sensor_watch import SensorWatch, WatchReference
 from .sharing import attach, detach
 
@@ -99,6 +100,8 @@ class _Lane:
     gating: GateStep
     watch: SensorWatch
     shared: bool
+    inferred: bool = False  # its last frame went to the model (the next warm-up includes a model call)
+    last: tuple[TimedFrame, float, GateResult] | None = None  # that frame, its raw force, its gate result
 
 
 @dataclass(slots=True)
@@ -191,6 +194,10 @@ class ForceRuntime:
         self._lanes = {s.name: _Lane(s, GateStep(s.name, s.gate), SensorWatch(s, reference), sh)
                        for s, sh in zip(sensors, shared)}
         self._judge = Judge(bundle)  # flags, honest force, error bar of every reading (judging.py)
+        # Getting ready shortly before the next frame is due at a slow cadence (prewarm.py):
+        # only with the real clock, which the warm-up's rest is slept on.
+        self._prewarm = Prewarm(clock) if self.options.prewarm and clock is time.monotonic_ns else None
+        self._model_prewarm: Callable[[int], None] | None = getattr(model, "prewarm", None)
         attach(model)  # last: a runtime that failed to build does not count as a user
 
     # -- public ---------------------------------------------------------------------------
@@ -228,9 +235,18 @@ class ForceRuntime:
         live = [s for s in self.sensors if s.alive]
         if not live:
             return out
+        warm = self._prewarm
+        wait_ns = warm.wait_ns(s.name for s in live) if warm is not None else -1
         if self._use_grabbers:
-            reads = self._start().take(live)
+            grabbers = self._start()
+            reads = grabbers.take(live, wait_ns / 1e9) if wait_ns >= 0 else grabbers.take(live)
+            if not reads and warm is not None:  # rested until shortly before the next frame
+                warm.timed(lambda: self._warm_up(live))
+                reads = grabbers.take(live)
         else:
+            if wait_ns >= 0 and warm is not None:
+                time.sleep(wait_ns / 1e9)
+                warm.timed(lambda: self._warm_up(live))
             reads = [(s, _read(s.source, self.clock)) for s in live]
         for s, rd in reads:
             p = self._acquire(s, rd, out)
@@ -305,6 +321,21 @@ class ForceRuntime:
         if detach(self.model, self.owns_model):
             self.model.close()
 
+    def _warm_up(self, live: list[Sensor]) -> None:
+        """Each live sensor's gate pass once more on its last frame, and one model call on
+        the last input when a sensor's last frame went to the model; results thrown away,
+        no state changed (prewarm.py)."""
+        n = 0
+        for s in live:
+            lane = self._lanes[s.name]
+            lane.gating.prewarm()
+            if lane.inferred and lane.last is not None:
+                n += 1
+                tf, raw, g = lane.last
+                self._judge.estimate(s.name, tf, raw, g, StageLatency())  # pure: the reading is dropped
+        if n and self._model_prewarm is not None:
+            self._model_prewarm(n)
+
     # -- the steps of one frame -------------------------------------------------------------
     def _finish(self, r: ForceReading, start_ns: int) -> ForceReading:
         r.latency.total_ms = (self.clock() - start_ns) / 1e6
@@ -334,10 +365,13 @@ class ForceRuntime:
         # Latency counts from when the source had the frame (its arrival stamp); a source
         # that stamps none: from when read() returned it.
         start = tf.arrival_ns if tf.arrival_ns is not None else t1
+        if self._prewarm is not None:
+            self._prewarm.seen(s.name, start)
         lat = StageLatency(source_ms=(t1 - r.t0) / 1e6)  # clock ns -> ms, here and below
         if self._grabbers is not None:
             t1 = self.clock()  # the gate's time starts here (the grabber's read was earlier)
         lane = self._lanes[s.name]
+        lane.inferred = False
         gating = lane.gating
         g = gating.run(tf)  # gate
         if g is None:  # the frame contract or its exposure refused it
@@ -354,6 +388,7 @@ class ForceRuntime:
             out.append(self._finish(self._judge.gated(s.name, tf, g, lat, lane.watch.pressed, s.gate), start))
             return None
         p = _Pending(lane, tf, frame, g, start, lat.source_ms, lat.gate_ms)
+        lane.inferred = True
         if lane.shared:
             p.net = g.reduced
         depth = s.depth
@@ -413,12 +448,16 @@ class ForceRuntime:
         self.stats.inferred += n
         judge = self._judge
         for p, raw in zip(pending, forces):
+            if self._prewarm is not None:
+                p.lane.last = (p.tf, float(raw), p.gate)
             lat = StageLatency(p.source_ms, p.gate_ms, p.depth_ms, inf_ms)
             r = judge.estimate(p.lane.sensor.name, p.tf, float(raw), p.gate, lat, error, p.lane.watch.foreign)
             out.append(self._finish(r, p.start_ns))
 
     def _count(self, r: ForceReading) -> None:
         st = self.stats
+        if self._prewarm is not None:
+            st.prewarms, st.prewarm_overran = self._prewarm.count, self._prewarm.overran
         st.readings += 1
         f = int(r.flags)  # plain int tests: IntFlag's `in` costs about a microsecond each
         if f & _STALE:

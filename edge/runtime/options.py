@@ -118,6 +118,11 @@ class ForceModelBase(abc.ABC):
         """:meth:`predict`: with ``reduction`` none the reduced images are the frames."""
         return self.predict(rgb, depth)
 
+    def prewarm(self, n: int = 1) -> None:
+        """Nothing to warm (a backend whose calls run cold after a rest may override it: one
+        throw-away call on its last batch-``n`` input, changing no answer)."""
+        return None
+
     def close(self) -> None:
         """Nothing to release (a subclass holding a session or a device overrides it and ``closed``)."""
         return None
@@ -156,6 +161,11 @@ class RuntimeOptions:
     latency_window: frames kept for the rolling p50/p99.
     grabbers: read each sensor in its own grabber thread (None: when there are two or more
     sensors; one sensor is read in the loop's thread, the lowest-latency path).
+    prewarm: at a slow cadence (frames 4 ms or more apart, e.g. a 60 fps sensor), wake
+    shortly before the next frame is due and run its gate and model once on the last frame,
+    results thrown away, so the frame finds caches warm (edge/runtime/prewarm.py): about half
+    the latency at 60 fps for one extra gate pass and model call of CPU per frame
+    (docs/benchmarks/cadence.md). Only with the runtime's real clock (``time.monotonic_ns``).
 
     Raises :class:`OptionsError` naming the field when deadline_ms is not a finite number > 0,
     threads < 1 or latency_window < 1, :class:`ArgumentTypeError` for a value of another type."""
@@ -166,6 +176,7 @@ class RuntimeOptions:
     report_stale: bool = True
     latency_window: int = field(default=600, metadata=check(ge=1))
     grabbers: bool | None = None
+    prewarm: bool = True
 
     def __post_init__(self) -> None:
         check_fields(self)
@@ -193,7 +204,9 @@ class Sensor:
 
 @dataclass
 class RuntimeStats:
-    """Counters over a run; latency_ms[stage] = {'p50': ms, 'p99': ms}."""
+    """Counters over a run; latency_ms[stage] = {'p50': ms, 'p99': ms}. ``prewarms``: warm-ups
+    run before a frame was due (``RuntimeOptions.prewarm``); ``prewarm_overran``: frames that
+    arrived while one still ran (they waited for it)."""
 
     readings: int = 0
     processed: int = 0
@@ -205,6 +218,8 @@ class RuntimeStats:
     source_errors: int = 0
     background_mismatch: int = 0
     out_of_distribution: int = 0
+    prewarms: int = 0
+    prewarm_overran: int = 0
     latency_ms: dict[str, dict[str, float]] = field(default_factory=dict)
 
     def as_dict(self) -> dict:

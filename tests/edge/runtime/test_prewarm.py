@@ -1,0 +1,268 @@
+"""Getting ready before a frame is due (edge/runtime/prewarm.py): when the runtime plans a
+warm-up (a fake clock drives the plan), and that a warm-up changes nothing a user sees: the
+gate's decisions, the model's answers and every reading stay what they are without it. Real
+ONNX Runtime sessions (the shipped default bundle), real gates, real DIGIT frames; the only
+real-time test paces an in-memory source at 50 fps and asserts no timing."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import cv2
+import numpy as np
+import pytest
+from tactile_force.edge import TimedFrame
+from tactile_force.edge.errors import ArgumentTypeError
+from tactile_force.edge.gate.contact_gate import ContactGate
+from tactile_force.edge.model.onnx_model import OnnxForceModel
+from tactile_force.edge.runtime import ForceRuntime, RuntimeOptions, Sensor
+from tactile_force.edge.runtime.grabbers import Grabbers
+from tactile_force.edge.runtime.prewarm import (
+    FIRST_WARM_NS,
+    MARGIN_NS,
+    MIN_GAP_NS,
+    Prewarm,
+)
+from tactile_force.edge.scene import default_bundle_path
+from tactile_force.edge.sources import load_background
+
+from tests.conftest import FakeClock, ListSource, shared_data
+
+PERIOD = 16_666_667  # ns, 60 fps
+
+
+# -- the plan ---------------------------------------------------------------------------------
+def _seen(p: Prewarm, name: str, start: int, n: int, period: int = PERIOD) -> int:
+    for i in range(n):
+        p.seen(name, start + i * period)
+    return start + (n - 1) * period
+
+
+def test_no_warm_up_before_a_steady_cadence_is_known():
+    clock = FakeClock(0)
+    p = Prewarm(clock)
+    assert p.wait_ns(["a"]) == -1  # never seen
+    last = _seen(p, "a", clock.t, 3)  # two gaps: not yet a cadence
+    clock.t = last + 1_000_000
+    assert p.wait_ns(["a"]) == -1
+    p.seen("a", last + PERIOD)
+    clock.t = last + PERIOD + 1_000_000
+    assert p.wait_ns(["a"]) == PERIOD - 1_000_000 - (FIRST_WARM_NS + MARGIN_NS)
+
+
+@pytest.mark.parametrize("period", [2_000_000, 3_000_000_000])
+def test_no_warm_up_for_frames_back_to_back_or_a_paused_source(period):
+    clock = FakeClock(0)
+    p = Prewarm(clock)
+    clock.t = _seen(p, "a", clock.t, 6, period)
+    assert p.wait_ns(["a"]) == -1
+
+
+def test_no_warm_up_when_the_rest_before_it_is_short():
+    clock = FakeClock(0)
+    p = Prewarm(clock)
+    last = _seen(p, "a", clock.t, 6)
+    due = last + PERIOD
+    clock.t = due - p.lead_ns - MIN_GAP_NS + 1  # the core would rest under MIN_GAP_NS
+    assert p.wait_ns(["a"]) == -1
+    clock.t -= 2
+    assert p.wait_ns(["a"]) == MIN_GAP_NS + 1
+
+
+def test_the_next_frame_of_any_sensor_sets_the_plan_and_a_dropped_frame_does_not_move_it():
+    clock = FakeClock(0)
+    p = Prewarm(clock)
+    start = clock.t
+    _seen(p, "a", start, 5)
+    last_b = _seen(p, "b", start + 5_000_000, 3)
+    p.seen("b", last_b + 2 * PERIOD)  # b dropped a frame: its period stays the median gap
+    clock.t = start + 4 * PERIOD + 100_000
+    wait = p.wait_ns(["a", "b"])
+    assert wait == start + 5 * PERIOD - p.lead_ns - clock.t  # a's frame is due first
+    assert p.wait_ns(["a", "b", "c"]) == -1  # a sensor without a cadence yet: no plan
+
+
+def test_the_lead_follows_the_measured_warm_up_and_wake_up():
+    clock = FakeClock(0)
+    p = Prewarm(clock)
+    last = _seen(p, "a", clock.t, 5)
+    clock.t = last + 1_000_000
+    wait = p.wait_ns(["a"])
+    clock.t += wait + 400_000  # the rest ended 0.4 ms late
+    p.timed(lambda: clock.sleep(0.002))  # the warm-up took 2 ms
+    assert p.count == 1
+    assert p.lead_ns == 2_000_000 + 400_000 + MARGIN_NS
+    p.seen("a", clock.t - 1)  # the frame arrived while the warm-up still ran
+    assert p.overran == 1
+    p.seen("a", clock.t + PERIOD)
+    assert p.overran == 1
+
+
+# -- nothing changes ------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def frames() -> tuple[np.ndarray, list[np.ndarray]]:
+    """The no-contact background and a sequence that exercises every state of the gate: no
+    contact, presses, a brightness step, a shifted image (the gel moved), pixel noise, and
+    the background again."""
+    (free,) = load_background(shared_data("digit_backgrounds", "aurova_background_b.png"))
+    images = shared_data("aurova_digit_grasp", "images")
+    touch = [cv2.imread(str(p)) for p in sorted(images.glob("*.png"))]
+    rng = np.random.default_rng(0)
+    bright = np.clip(free.astype(np.int16) + 40, 0, 255).astype(np.uint8)
+    shifted = np.roll(free, 12, axis=1)
+    noisy = np.clip(free + rng.normal(0, 25, free.shape), 0, 255).astype(np.uint8)
+    seq = [free, free, *touch[:5], free, bright, bright, *touch[5:], shifted, shifted, noisy, free, free, *touch[:3]]
+    return free, seq
+
+
+def _decision(g) -> tuple:
+    return (g.contact, g.area_px, g.saturation_seen, g.mismatch, g.invalid, round(g.deformation, 9), g.gain,
+            g.offset, g.thumb.tobytes(), g.mask.tobytes())
+
+
+def test_gate_prewarm_changes_no_decision(frames):
+    free, seq = frames
+    plain, warmed = ContactGate(), ContactGate()
+    plain.capture_background([free])
+    warmed.capture_background([free])
+    warmed.prewarm()  # before any live frame: nothing to warm on
+    for i, f in enumerate(seq):
+        a = _decision(plain.update(f))
+        b = _decision(warmed.update(f))
+        assert a == b, f"frame {i}: the gate decided otherwise after a warm-up"
+        warmed.prewarm()
+        warmed.prewarm()
+        assert warmed.state == plain.state
+    assert warmed.relearned == plain.relearned
+
+
+def test_gate_prewarm_before_a_background_does_nothing(frames):
+    free, _ = frames
+    g = ContactGate()
+    g.prewarm()
+    g.update(free)
+    g.prewarm()  # still learning: nothing to compare with
+    assert not g.background_ready
+
+
+@pytest.fixture(scope="module")
+def model():
+    m = OnnxForceModel(default_bundle_path())
+    yield m
+    m.close()
+
+
+def test_model_prewarm_changes_no_answer(frames, model):
+    _, seq = frames
+    a, b = np.stack(seq[2:4]), np.stack(seq[5:6])
+    alone = model.predict(b)
+    first = model.predict(a)
+    model.prewarm(2)
+    model.prewarm(1)
+    model.prewarm(16)  # a batch not bound yet: nothing to run
+    np.testing.assert_array_equal(model.predict(b), alone)
+    np.testing.assert_array_equal(model.predict(a), first)
+
+
+def test_model_prewarm_after_close_does_nothing():
+    m = OnnxForceModel(default_bundle_path())
+    m.close()
+    m.prewarm()
+
+
+def test_prewarm_option_is_checked():
+    with pytest.raises(ArgumentTypeError, match="RuntimeOptions.prewarm"):
+        RuntimeOptions(prewarm="yes")  # type: ignore[arg-type]
+
+
+class PacedList(ListSource):
+    """Frames in memory arriving at ``fps`` in real time (read() sleeps until each is due),
+    stamped when due, like a camera."""
+
+    def __init__(self, frames, fps: float, offset_s: float = 0.0) -> None:
+        super().__init__(frames)
+        self.period = int(1e9 / fps)
+        self.t0 = time.monotonic_ns() + int(offset_s * 1e9) + 50_000_000
+
+    def read(self):
+        i = self.stats.frames
+        if i >= len(self.frames):
+            return None
+        due = self.t0 + i * self.period
+        now = time.monotonic_ns()
+        if due > now:
+            time.sleep((due - now) / 1e9)
+        self.stats.frames += 1
+        return TimedFrame(self.frames[i], due, i, arrival_ns=max(due, 0))
+
+
+def _run(frames, free, model, n_sensors: int, prewarm: bool, paced: bool):
+    sensors = []
+    for k in range(n_sensors):
+        g = ContactGate()
+        g.capture_background([free])
+        src = PacedList(frames, 50, offset_s=k * 0.004) if paced else ListSource(frames)
+        sensors.append(Sensor(f"s{k}", src, g))
+    rt = ForceRuntime(sensors, model, RuntimeOptions(deadline_ms=1e6, prewarm=prewarm), owns_model=False)
+    try:
+        out = []
+        while not rt.finished:
+            out += [(r.sensor, r.frame_index, r.force_n, int(r.flags), r.contact_area_px, r.detail)
+                    for r in rt.step()]
+        return sorted(out, key=lambda r: (r[0], r[1])), rt.stats
+    finally:
+        rt.close()
+
+
+@pytest.mark.parametrize("n_sensors", [1, 2])
+def test_readings_with_warm_ups_equal_readings_without(frames, model, n_sensors):
+    """One sensor (read in the loop's thread) and two (grabber threads) at 50 fps: the
+    runtime warms up before frames (counted) and every reading is the one made without."""
+    free, seq = frames
+    seq = seq[:20]
+    want, _ = _run(seq, free, model, n_sensors, prewarm=False, paced=False)
+    got, stats = _run(seq, free, model, n_sensors, prewarm=True, paced=True)
+    assert stats.prewarms > 0
+    np.testing.assert_equal(got, want)
+
+
+def test_no_warm_up_with_an_injected_clock_or_back_to_back(frames, model):
+    free, seq = frames
+    g = ContactGate()
+    g.capture_background([free])
+    rt = ForceRuntime([Sensor("s", ListSource(seq), g)], model, RuntimeOptions(deadline_ms=1e6), owns_model=False,
+                      clock=FakeClock(PERIOD))  # readings 16.7 ms apart, but on a clock the runtime cannot sleep on
+    rt.run()
+    rt.close()
+    assert rt.stats.prewarms == 0
+    _, stats = _run(seq, free, model, 1, prewarm=True, paced=False)  # back to back: the core never rests
+    assert stats.prewarms == 0
+
+
+def test_grabbers_take_returns_nothing_when_the_wait_ends_first():
+    release = threading.Event()
+
+    class Blocked:
+        name = "blocked"
+
+        def read(self):
+            release.wait(20.0)
+            return None
+
+        def close(self):
+            pass
+
+    class S:
+        def __init__(self) -> None:
+            self.name, self.source = "a", Blocked()
+
+    s = S()
+    grabbers = Grabbers([s], time.monotonic_ns)
+    try:
+        assert grabbers.take([s], timeout_s=0.01) == []
+        release.set()
+        got = grabbers.take([s], timeout_s=20.0)
+        assert [x[0] for x in got] == [s] and got[0][1].tf is None
+    finally:
+        grabbers.stop()
