@@ -147,9 +147,17 @@ def build_scene(scene: Scene, clock: Clock | None = None, warn: Callable[[str], 
     """Open sources, gates, model (and depth stages only for depth bundles) and outputs.
 
     warn: called with a message when a learnt background already looks like contact
-    (default: added to the notes of the result, see :class:`LearningWatch`)."""
+    (default: added to the notes of the result, see :class:`LearningWatch`).
+
+    OpenCV runs the scene's ``threads`` threads (``cv2.setNumThreads``, process-wide): the
+    gate's calls work on 80 x 60 images, where a thread pool only burns CPU (at 60 fps one
+    sensor's process CPU 9.4 % with OpenCV's default 2 threads, 6.1 % with 1, latency the
+    same: docs/benchmarks/cadence.md)."""
     import time
 
+    import cv2
+
+    cv2.setNumThreads(scene.threads)
     from ..runtime import ForceRuntime
     from ..runtime.depth_factory import build_depth_stage
     from ..runtime.options import RuntimeOptions, Sensor

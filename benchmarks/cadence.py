@@ -1,0 +1,249 @@
+"""Latency at the sensor's cadence (cadence.md): what a reading costs when frames arrive every
+1/60 s, measured against a bare model call at the same cadence in the same process.
+
+Reference: a bare onnxruntime session (1 intra-op thread, sequential) on the shipped default
+graph, fed the runtime's reduced contact frames, one call per 1/60 s tick, sleeping between
+calls. Each round runs, in this order, a reference phase before every runtime phase:
+``ForceRuntime`` with the default bundle and one sensor (warm-ups off, then on) and with eight
+sensors phase-shifted by 1/480 s (off, then on); every sensor's frames arrive at 60 fps from
+:class:`~.harness.sources.PacedMemorySource`. Ratios divide by the reference p50 of the same
+round, so the machine's speed cancels. One back-to-back phase per round gives the floor the
+cold time is measured against (where it goes, per stage). ``tactile-force bench``'s verdict
+at the cadence on the default bundle is counted over ``--bench-runs`` runs.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .harness.frames import contact_frames
+from .harness.latency import BareOnnxRuntime, LatencyCase
+from .harness.machine import CpuWindow, command_line, describe_machine, header
+from .harness.sources import MemorySource, PacedMemorySource
+from .harness.stats import markdown_table
+
+FPS = 60.0
+HAND = 8  # sensors of the many-sensor phases
+SKIP = 20  # readings per sensor not counted (the runtime's first frames)
+STAGES = ("gate", "inference", "glue", "total")
+
+
+@dataclass
+class Phase:
+    """One measured phase: per-sensor total latency (ms), per-stage samples (ms), the process
+    CPU time and wall time (s), readings, warm-ups run and frames that waited for one."""
+
+    totals: list[np.ndarray]
+    stages: dict[str, np.ndarray]
+    cpu_s: float
+    wall_s: float
+    readings: int
+    prewarms: int = 0
+    overran: int = 0
+
+    @property
+    def cpu_share(self) -> float:
+        return self.cpu_s / self.wall_s if self.wall_s > 0 else math.nan
+
+    @property
+    def cpu_per_reading_ms(self) -> float:
+        return 1e3 * self.cpu_s / self.readings if self.readings else math.nan
+
+    def p(self, q: float, worst: bool = False) -> float:
+        """Total latency percentile q (ms): of all readings, or the worst sensor's."""
+        if worst:
+            return max(float(np.percentile(t, q)) for t in self.totals)
+        return float(np.percentile(np.concatenate(self.totals), q))
+
+
+def reference(bare: BareOnnxRuntime, n: int, fps: float = FPS) -> np.ndarray:
+    """``n`` bare session calls, one per 1/fps tick, sleeping between them: ms per call."""
+    out = np.empty(n)
+    period = 1.0 / fps
+    t0 = time.perf_counter() + period
+    for i in range(n):
+        rest = t0 + i * period - time.perf_counter()
+        if rest > 0:
+            time.sleep(rest)
+        a = time.perf_counter_ns()
+        bare.run(i)
+        out[i] = (time.perf_counter_ns() - a) / 1e6
+    return out
+
+
+def runtime_phase(model, pool, sensors: int, n: int, prewarm: bool, fps: float | None = FPS) -> Phase:
+    """``ForceRuntime`` over ``sensors`` in-memory sensors, ``n`` frames each: at ``fps``
+    (phase-shifted by 1/(fps x sensors)) or back to back (``fps`` None)."""
+    from tactile_force.edge import ContactGate
+    from tactile_force.edge.runtime import ForceRuntime, RuntimeOptions, Sensor
+
+    made = []
+    for k in range(sensors):
+        gate = ContactGate()
+        gate.capture_background(pool.background)
+        src = (MemorySource(pool.rgb, n + SKIP) if fps is None
+               else PacedMemorySource(pool.rgb, fps, n + SKIP, offset_s=0.05 + k / (fps * sensors), name=f"s{k}"))
+        made.append(Sensor(f"s{k}", src, gate))
+    rt = ForceRuntime(made, model, RuntimeOptions(deadline_ms=1e9, prewarm=prewarm), owns_model=False)
+    rt.start(1.0)
+    rows: dict[str, list[tuple[float, ...]]] = {s.name: [] for s in made}
+    count = 0
+    c0, w0 = time.process_time(), time.perf_counter()
+    while not rt.finished:
+        for r in rt.step():
+            count += 1
+            if r.frame_index >= SKIP:
+                L = r.latency
+                rows[r.sensor].append((L.source_ms, L.gate_ms, L.inference_ms, L.total_ms))
+    cpu_s, wall_s = time.process_time() - c0, time.perf_counter() - w0
+    rt.close()
+    a = np.array([x for v in rows.values() for x in v])
+    stages = {"source": a[:, 0], "gate": a[:, 1], "inference": a[:, 2], "total": a[:, 3],
+              "glue": a[:, 3] - a[:, 1] - a[:, 2]}
+    return Phase([np.array([x[3] for x in v]) for v in rows.values()], stages, cpu_s, wall_s, count,
+                 rt.stats.prewarms, rt.stats.prewarm_overran)
+
+
+@dataclass
+class Round:
+    """One round: the reference calls (ms) and the runtime phases by name."""
+
+    ref: np.ndarray
+    phases: dict[str, Phase] = field(default_factory=dict)
+
+    def ratio(self, name: str, q: float, worst: bool = False) -> float:
+        return self.phases[name].p(q, worst) / float(np.median(self.ref))
+
+
+PHASES = {"1 sensor, before": (1, False), "1 sensor, after": (1, True),
+          f"{HAND} sensors, before": (HAND, False), f"{HAND} sensors, after": (HAND, True)}
+
+
+def measure(rounds: int, n: int) -> list[Round]:
+    import cv2
+    from tactile_force.edge import OnnxForceModel, load_bundle
+    from tactile_force.edge.scene import default_bundle_path
+
+    cv2.setNumThreads(1)  # as a scene with threads = 1 runs (edge/scene/build.py)
+    pool = contact_frames()
+    path = default_bundle_path()
+    bare = BareOnnxRuntime(LatencyCase(None, "fp32", bundle=path), pool)
+    model = OnnxForceModel(load_bundle(path), threads=1)
+    out = []
+    for k in range(rounds):
+        rd = Round(np.empty(0))
+        rd.phases["back to back"] = runtime_phase(model, pool, 1, 2000, prewarm=True, fps=None)
+        refs = []
+        for name, (sensors, prewarm) in PHASES.items():
+            refs.append(reference(bare, n))
+            rd.phases[name] = runtime_phase(model, pool, sensors, n, prewarm)
+        rd.ref = np.concatenate(refs)
+        out.append(rd)
+        print(f"cadence round {k + 1}/{rounds}: reference p50 {np.median(rd.ref):.3f} ms; 1 sensor p50 / reference "
+              f"{rd.ratio('1 sensor, before', 50):.2f} before, {rd.ratio('1 sensor, after', 50):.2f} after",
+              flush=True)
+    model.close()
+    return out
+
+
+def bench_passes(runs: int) -> list[str]:
+    """``tactile-force bench --bundle <default> --repeats 1``'s verdict, ``runs`` times."""
+    from tactile_force.edge.scene import default_bundle_path
+
+    from .bench import bench_bundle
+
+    pool = contact_frames()
+    return [bench_bundle(default_bundle_path(), pool, repeats=1, fps=FPS).verdict for _ in range(runs)]
+
+
+def _span(values: list[float], fmt: str = ".2f") -> str:
+    return f"{np.median(values):{fmt}} ({min(values):{fmt}}-{max(values):{fmt}})"
+
+
+def goals_table(rds: list[Round], verdicts: list[str]) -> str:
+    def ratio(name: str, q: float, worst: bool = False) -> list[float]:
+        return [r.ratio(name, q, worst) for r in rds]
+
+    def cpu(name: str) -> list[float]:
+        return [100 * r.phases[name].cpu_share for r in rds]
+
+    def per_reading(many: str, one: str) -> list[float]:
+        return [r.phases[many].cpu_per_reading_ms / r.phases[one].cpu_per_reading_ms for r in rds]
+
+    h = f"{HAND} sensors"
+    rows = []
+    for goal, limit, before, after in (
+            ("1 sensor: total p50 / reference p50", 1.0, ratio("1 sensor, before", 50), ratio("1 sensor, after", 50)),
+            ("1 sensor: total p99 / reference p50", 1.6, ratio("1 sensor, before", 99), ratio("1 sensor, after", 99)),
+            ("1 sensor: process CPU, % of one core", 10.0, cpu("1 sensor, before"), cpu("1 sensor, after")),
+            (f"{h}: worst sensor's total p99 / reference p50", 2.5, ratio(f"{h}, before", 99, True),
+             ratio(f"{h}, after", 99, True)),
+            (f"{h}: process CPU, % of one core", 35.0, cpu(f"{h}, before"), cpu(f"{h}, after")),
+            (f"{h}: CPU per reading / one sensor's", 0.8, per_reading(f"{h}, before", "1 sensor, before"),
+             per_reading(f"{h}, after", "1 sensor, after"))):
+        met = sum(v <= limit for v in after)
+        rows.append([goal, f"<= {limit:g}", _span(before), _span(after), f"{met} of {len(after)} rounds"])
+    if verdicts:
+        n_pass = verdicts.count("PASS")
+        rows.append(["`tactile-force bench` at 60 fps, default bundle", "PASS", "1 of 10 runs (commit 8549ec9)",
+                     f"{n_pass} of {len(verdicts)} runs", ", ".join(sorted(set(verdicts)))])
+    return markdown_table(["goal", "limit", "before (warm-ups off)", "after (warm-ups on)", "met"], rows)
+
+
+def stages_table(rds: list[Round]) -> str:
+    rows = []
+    for name in ("back to back", "1 sensor, before", "1 sensor, after"):
+        ph = [r.phases[name] for r in rds]
+        cells = [float(np.median([np.percentile(p.stages[s], 50) for p in ph])) for s in STAGES]
+        rows.append([name, *cells, float(np.median([p.cpu_per_reading_ms for p in ph])),
+                     sum(p.prewarms for p in ph), sum(p.overran for p in ph)])
+    rows.append(["reference (bare session)", "-", "-", float(np.median([np.median(r.ref) for r in rds])), "-", "-",
+                 "-", "-", "-"])
+    return markdown_table(["one sensor", *(f"{s} p50 ms" for s in STAGES), "CPU ms / reading", "warm-ups",
+                           "waited for one"], rows)
+
+
+def phases_table(rds: list[Round]) -> str:
+    rows = []
+    for name in ("back to back", *PHASES):
+        ph = [r.phases[name] for r in rds]
+        rows.append([name, _span([p.p(50) for p in ph], ".3f"), _span([p.p(99) for p in ph], ".3f"),
+                     _span([p.p(99, True) for p in ph], ".3f"), _span([100 * p.cpu_share for p in ph], ".1f"),
+                     sum(p.readings for p in ph)])
+    rows.append(["reference (bare session)", _span([float(np.median(r.ref)) for r in rds], ".3f"),
+                 _span([float(np.percentile(r.ref, 99)) for r in rds], ".3f"), "-", "-", sum(len(r.ref) for r in rds)])
+    return markdown_table(["phase", "total p50 ms", "total p99 ms", "worst sensor p99 ms", "process CPU %",
+                           "readings"], rows)
+
+
+def run(args, argv) -> int:
+    rounds, n = (1, 120) if args.quick else (args.rounds, 600)
+    window = CpuWindow()
+    rds = measure(rounds, n)
+    verdicts = bench_passes(2 if args.quick else args.bench_runs)
+    state = window.stop()
+    notes = (f"{rounds} rounds of {n} frames per sensor and phase at {FPS:g} fps; per cell the median over rounds "
+             f"(min-max). Before: the same runtime with `RuntimeOptions(prewarm=False)`, what every earlier commit "
+             f"ran. While measuring: {state.line()}.")
+    text = header("Latency at the sensor's cadence", command_line(argv), describe_machine(), notes)
+    text += "\n## Goals\n\n" + goals_table(rds, verdicts) + "\n"
+    text += "\n## Every phase\n\n" + phases_table(rds) + "\n"
+    text += "\n## Where the cold time goes (one sensor, per stage)\n\n" + stages_table(rds) + "\n"
+    from tactile_force.edge.files.atomic import staged_file
+
+    page = Path(args.out) / "cadence.md"
+    old = page.read_text() if page.exists() else ""
+    keep = old[old.index(MARK):] if MARK in old else MARK + "\n"  # the hand-kept findings
+    with staged_file(page) as tmp:
+        tmp.write_text(text + "\n" + keep)
+    print(f"wrote {page}")
+    return 0
+
+
+#: Everything below this line in cadence.md is kept when the page is made again.
+MARK = "<!-- hand-kept below: findings -->"
