@@ -14,6 +14,7 @@ at the cadence on the default bundle is counted over ``--bench-runs`` runs.
 
 from __future__ import annotations
 
+import json
 import math
 import time
 from dataclasses import dataclass, field
@@ -202,8 +203,8 @@ def stages_table(rds: list[Round]) -> str:
         cells = [float(np.median([np.percentile(p.stages[s], 50) for p in ph])) for s in STAGES]
         rows.append([name, *cells, float(np.median([p.cpu_per_reading_ms for p in ph])),
                      sum(p.prewarms for p in ph), sum(p.overran for p in ph)])
-    rows.append(["reference (bare session)", "-", "-", float(np.median([np.median(r.ref) for r in rds])), "-", "-",
-                 "-", "-", "-"])
+    rows.append(["reference (bare session)", "-", float(np.median([np.median(r.ref) for r in rds])), "-", "-", "-",
+                 "-", "-"])
     return markdown_table(["one sensor", *(f"{s} p50 ms" for s in STAGES), "CPU ms / reading", "warm-ups",
                            "waited for one"], rows)
 
@@ -227,6 +228,15 @@ def run(args, argv) -> int:
     rds = measure(rounds, n)
     verdicts = bench_passes(2 if args.quick else args.bench_runs)
     state = window.stop()
+    from tactile_force.edge.files.atomic import staged_file
+
+    summary = [{"reference_ms": np.percentile(r.ref, [50, 99]).tolist(),
+                **{name: {"total_ms": [p.p(50), p.p(99), p.p(99, True)], "cpu_share": p.cpu_share,
+                          "cpu_per_reading_ms": p.cpu_per_reading_ms, "prewarms": p.prewarms, "overran": p.overran,
+                          "stages_p50_ms": {k: float(np.percentile(v, 50)) for k, v in p.stages.items()}}
+                   for name, p in r.phases.items()}} for r in rds]
+    with staged_file(Path(args.out) / "cadence.json") as tmp:  # the measured figures, before any rendering
+        tmp.write_text(json.dumps({"rounds": summary, "bench_verdicts": verdicts}, indent=1) + "\n")
     notes = (f"{rounds} rounds of {n} frames per sensor and phase at {FPS:g} fps; per cell the median over rounds "
              f"(min-max). Before: the same runtime with `RuntimeOptions(prewarm=False)`, what every earlier commit "
              f"ran. While measuring: {state.line()}.")
@@ -234,8 +244,6 @@ def run(args, argv) -> int:
     text += "\n## Goals\n\n" + goals_table(rds, verdicts) + "\n"
     text += "\n## Every phase\n\n" + phases_table(rds) + "\n"
     text += "\n## Where the cold time goes (one sensor, per stage)\n\n" + stages_table(rds) + "\n"
-    from tactile_force.edge.files.atomic import staged_file
-
     page = Path(args.out) / "cadence.md"
     old = page.read_text() if page.exists() else ""
     keep = old[old.index(MARK):] if MARK in old else MARK + "\n"  # the hand-kept findings
