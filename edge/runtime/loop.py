@@ -242,11 +242,13 @@ class ForceRuntime:
             reads = grabbers.take(live, wait_ns / 1e9) if wait_ns >= 0 else grabbers.take(live)
             if not reads and warm is not None:  # rested until shortly before the next frame
                 warm.timed(lambda: self._warm_up(live))
+                self.stats.prewarms = warm.count
                 reads = grabbers.take(live)
         else:
             if wait_ns >= 0 and warm is not None:
                 time.sleep(wait_ns / 1e9)
                 warm.timed(lambda: self._warm_up(live))
+                self.stats.prewarms = warm.count
             reads = [(s, _read(s.source, self.clock)) for s in live]
         for s, rd in reads:
             p = self._acquire(s, rd, out)
@@ -367,6 +369,7 @@ class ForceRuntime:
         start = tf.arrival_ns if tf.arrival_ns is not None else t1
         if self._prewarm is not None:
             self._prewarm.seen(s.name, start)
+            self.stats.prewarm_overran = self._prewarm.overran
         lat = StageLatency(source_ms=(t1 - r.t0) / 1e6)  # clock ns -> ms, here and below
         if self._grabbers is not None:
             t1 = self.clock()  # the gate's time starts here (the grabber's read was earlier)
@@ -456,8 +459,6 @@ class ForceRuntime:
 
     def _count(self, r: ForceReading) -> None:
         st = self.stats
-        if self._prewarm is not None:
-            st.prewarms, st.prewarm_overran = self._prewarm.count, self._prewarm.overran
         st.readings += 1
         f = int(r.flags)  # plain int tests: IntFlag's `in` costs about a microsecond each
         if f & _STALE:

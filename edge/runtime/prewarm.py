@@ -42,15 +42,18 @@ WARM_HISTORY = 8
 
 
 class _Cadence:
-    """One sensor's arrival stamps: the last one and the last :data:`HISTORY` gaps (ns)."""
+    """One sensor's arrival stamps: the last one, the last :data:`HISTORY` gaps (ns) and the
+    next frame's predicted arrival (``due``, -1 while no steady cadence is known), made once
+    per frame."""
 
-    __slots__ = ("last", "gaps", "i", "n")
+    __slots__ = ("last", "gaps", "i", "n", "due")
 
     def __init__(self) -> None:
         self.last = -1
         self.gaps = [0] * HISTORY
         self.i = 0
         self.n = 0
+        self.due = -1
 
     def add(self, arrival_ns: int) -> None:
         if self.last >= 0 and arrival_ns > self.last:
@@ -58,15 +61,8 @@ class _Cadence:
             self.i = (self.i + 1) % HISTORY
             self.n = min(self.n + 1, HISTORY)
         self.last = arrival_ns
-
-    def next_due(self) -> int:
-        """The next frame's predicted arrival (ns), or -1 while no steady cadence is known."""
-        if self.n < 3:
-            return -1
-        period = sorted(self.gaps[:self.n])[self.n // 2]
-        if not MIN_PERIOD_NS <= period <= MAX_PERIOD_NS:
-            return -1
-        return self.last + period
+        period = sorted(self.gaps[:self.n])[self.n // 2] if self.n >= 3 else 0
+        self.due = arrival_ns + period if MIN_PERIOD_NS <= period <= MAX_PERIOD_NS else -1
 
 
 class Prewarm:
@@ -112,14 +108,12 @@ class Prewarm:
         """How long to rest before warming up for the next frame of any of ``names`` (ns), or
         -1: no warm-up now (no steady cadence, or too little rest before the frame)."""
         due = -1
+        cadence = self._cadence
         for name in names:
-            c = self._cadence.get(name)
-            if c is None:
+            c = cadence.get(name)
+            if c is None or c.due < 0:
                 return -1
-            d = c.next_due()
-            if d < 0:
-                return -1
-            due = d if due < 0 else min(due, d)
+            due = c.due if due < 0 else min(due, c.due)
         if due < 0:
             return -1
         now = self.clock()
