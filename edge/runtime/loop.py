@@ -324,9 +324,9 @@ class ForceRuntime:
             self.model.close()
 
     def _warm_up(self, live: list[Sensor]) -> None:
-        """Each live sensor's gate pass once more on its last frame, and one model call on
-        the last input when a sensor's last frame went to the model; results thrown away,
-        no state changed (prewarm.py)."""
+        """Each live sensor's gate step once more on its last frame and, when that frame went
+        to the model, its depth stage (depth bundles) and judge, then one model call on the
+        last input; results thrown away, no state changed (prewarm.py)."""
         n = 0
         for s in live:
             lane = self._lanes[s.name]
@@ -334,6 +334,12 @@ class ForceRuntime:
             if lane.inferred and lane.last is not None:
                 n += 1
                 tf, raw, g = lane.last
+                depth = s.depth
+                if depth is not None:  # into the stage's buffers, as _acquire calls it
+                    if g.reduced is not None and g.reduced.shape == depth.grid_frame_shape:
+                        depth.process(g.reduced, g.reduced_mask, checked=True)
+                    else:
+                        depth.process(lane.gating.frame, g.mask)
                 self._judge.estimate(s.name, tf, raw, g, StageLatency())  # pure: the reading is dropped
         if n and self._model_prewarm is not None:
             self._model_prewarm(n)

@@ -197,6 +197,19 @@ class PacedList(ListSource):
         return TimedFrame(self.frames[i], due, i, arrival_ns=max(due, 0))
 
 
+@pytest.fixture(scope="module")
+def depth_model():
+    """The shipped D bundle (its depth stage is warmed up too)."""
+    from tactile_force.edge.scene import shipped_bundles
+
+    path = shipped_bundles().get("d")
+    if path is None:
+        pytest.skip("the shipped D bundle is not in edge/models")
+    m = OnnxForceModel(path)
+    yield m
+    m.close()
+
+
 def _run(frames, free, model, n_sensors: int, prewarm: bool, paced: bool):
     sensors = []
     for k in range(n_sensors):
@@ -223,6 +236,15 @@ def test_readings_with_warm_ups_equal_readings_without(frames, model, n_sensors)
     seq = seq[:20]
     want, _ = _run(seq, free, model, n_sensors, prewarm=False, paced=False)
     got, stats = _run(seq, free, model, n_sensors, prewarm=True, paced=True)
+    assert stats.prewarms > 0
+    np.testing.assert_equal(got, want)
+
+
+def test_depth_readings_with_warm_ups_equal_readings_without(frames, depth_model):
+    free, seq = frames
+    seq = seq[:14]
+    want, _ = _run(seq, free, depth_model, 1, prewarm=False, paced=False)
+    got, stats = _run(seq, free, depth_model, 1, prewarm=True, paced=True)
     assert stats.prewarms > 0
     np.testing.assert_equal(got, want)
 
