@@ -11,6 +11,10 @@ PAGES = (
                         "bundles (RGBmod, D, RGBmod+D) through ForceRuntime on this host with the under-1 ms "
                         "verdict per bundle (+ report.json, pareto.png)",
      "tactile-force bench --out docs/benchmarks/bench"),
+    ("cadence.md", "Latency at the sensor's cadence (60 fps): one sensor and eight phase-shifted against a bare "
+                   "session at the same cadence, warm-ups off / on, where the cold time goes per stage, which parts "
+                   "of the warm-up pay, the bench verdict over 10 runs (+ cadence.json)",
+     "python -m benchmarks cadence --out docs/benchmarks"),
     ("depth_bundles.md", "The shipped compact D and RGBmod+D bundles: error on the synthetic test split through "
                          "ForceRuntime, and their total p50 against RGBmod interleaved",
      "python -m benchmarks.depth_bundles --write docs/benchmarks/depth_bundles.md"),

@@ -101,7 +101,7 @@ class _Lane:
     watch: SensorWatch
     shared: bool
     inferred: bool = False  # its last frame went to the model (the next warm-up includes a model call)
-    last: tuple[TimedFrame, float, GateResult] | None = None  # that frame, its raw force, its gate result
+    last: GateResult | None = None  # that frame's gate result (the depth stage's warm-up reads it)
 
 
 @dataclass(slots=True)
@@ -325,22 +325,22 @@ class ForceRuntime:
 
     def _warm_up(self, live: list[Sensor]) -> None:
         """Each live sensor's gate step once more on its last frame and, when that frame went
-        to the model, its depth stage (depth bundles) and judge, then one model call on the
-        last input; results thrown away, no state changed (prewarm.py)."""
+        to the model, its depth stage (depth bundles), then one model call on the last input;
+        results thrown away, no state changed (prewarm.py). Warming the judge too measured
+        no gain (docs/benchmarks/cadence.md)."""
         n = 0
         for s in live:
             lane = self._lanes[s.name]
             lane.gating.prewarm()
-            if lane.inferred and lane.last is not None:
+            g = lane.last
+            if lane.inferred and g is not None:
                 n += 1
-                tf, raw, g = lane.last
                 depth = s.depth
                 if depth is not None:  # into the stage's buffers, as _acquire calls it
                     if g.reduced is not None and g.reduced.shape == depth.grid_frame_shape:
                         depth.process(g.reduced, g.reduced_mask, checked=True)
                     else:
                         depth.process(lane.gating.frame, g.mask)
-                self._judge.estimate(s.name, tf, raw, g, StageLatency())  # pure: the reading is dropped
         if n and self._model_prewarm is not None:
             self._model_prewarm(n)
 
@@ -458,7 +458,7 @@ class ForceRuntime:
         judge = self._judge
         for p, raw in zip(pending, forces):
             if self._prewarm is not None:
-                p.lane.last = (p.tf, float(raw), p.gate)
+                p.lane.last = p.gate
             lat = StageLatency(p.source_ms, p.gate_ms, p.depth_ms, inf_ms)
             r = judge.estimate(p.lane.sensor.name, p.tf, float(raw), p.gate, lat, error, p.lane.watch.foreign)
             out.append(self._finish(r, p.start_ns))
