@@ -100,6 +100,11 @@ class DataStatsCheck:
         self._lo = np.clip(np.floor(np.asarray(stats.cell_lo, np.float64) - m), 0, 255).astype(np.uint8).reshape(shape)
         self._hi = np.clip(np.ceil(np.asarray(stats.cell_hi, np.float64) + m), 0, 255).astype(np.uint8).reshape(shape)
         self._limit = int(stats.max_outside_frac * self._lo.size)
+        # one value per column (rows x cols*3, single channel): inRange judges every channel
+        # value on its own, into a buffer made once
+        flat = (stats.thumb_rows, stats.thumb_cols * 3)
+        self._lo_flat, self._hi_flat = self._lo.reshape(flat), self._hi.reshape(flat)
+        self._inside = np.empty(flat, np.uint8)
         self._area_max = stats.contact_area_frac_max
         self._deform_max = stats.deformation_max
 
@@ -117,7 +122,11 @@ class DataStatsCheck:
                              "check skipped", self._name, thumb.shape, self._lo.shape)
                 self._warned = True
             return ""
-        outside = np.count_nonzero(thumb < self._lo) + np.count_nonzero(thumb > self._hi)
+        import cv2  # here, so that importing tactile_force.edge stays light
+
+        flat = np.ascontiguousarray(thumb).reshape(self._inside.shape)
+        cv2.inRange(flat, self._lo_flat, self._hi_flat, dst=self._inside)  # lo <= value <= hi
+        outside = thumb.size - cv2.countNonZero(self._inside)
         if outside > self._limit:
             return (f"{100.0 * outside / thumb.size:.0f} % of the frame's low-resolution colours lie outside what "
                     f"the bundle's data covered (another sensor, lighting or gel than the model saw)")

@@ -101,7 +101,7 @@ class _Lane:
     watch: SensorWatch
     shared: bool
     inferred: bool = False  # its last frame went to the model (the next warm-up includes a model call)
-    last: GateResult | None = None  # that frame's gate result (the depth stage's warm-up reads it)
+    last: tuple[TimedFrame, float, GateResult] | None = None  # that frame, its raw force, its gate result
 
 
 @dataclass(slots=True)
@@ -325,16 +325,16 @@ class ForceRuntime:
 
     def _warm_up(self, live: list[Sensor]) -> None:
         """Each live sensor's gate step once more on its last frame and, when that frame went
-        to the model, its depth stage (depth bundles), then one model call on the last input;
-        results thrown away, no state changed (prewarm.py). Warming the judge too measured
-        no gain (docs/benchmarks/cadence.md)."""
+        to the model, its judge and depth stage (depth bundles), then one model call on the
+        last input; results thrown away, no state changed (prewarm.py)."""
         n = 0
         for s in live:
             lane = self._lanes[s.name]
             lane.gating.prewarm()
-            g = lane.last
-            if lane.inferred and g is not None:
+            if lane.inferred and lane.last is not None:
                 n += 1
+                tf, raw, g = lane.last
+                self._judge.estimate(s.name, tf, raw, g, StageLatency())  # pure: the reading is dropped
                 depth = s.depth
                 if depth is not None:  # into the stage's buffers, as _acquire calls it
                     if g.reduced is not None and g.reduced.shape == depth.grid_frame_shape:
@@ -458,7 +458,7 @@ class ForceRuntime:
         judge = self._judge
         for p, raw in zip(pending, forces):
             if self._prewarm is not None:
-                p.lane.last = p.gate
+                p.lane.last = (p.tf, float(raw), p.gate)
             lat = StageLatency(p.source_ms, p.gate_ms, p.depth_ms, inf_ms)
             r = judge.estimate(p.lane.sensor.name, p.tf, float(raw), p.gate, lat, error, p.lane.watch.foreign)
             out.append(self._finish(r, p.start_ns))
