@@ -77,6 +77,8 @@ def parse_force_text(data: bytes, where: str) -> float:
         raise LabelError(f"{where}: first line {first[:40]!r} has a decimal comma; write the force with a decimal "
                          f"point (e.g. 1.08); {_EXPECTED}")
     fields = [f for f in re.split(r"\s*[,;]\s*|\s+", first) if f]
+    if not fields:  # separators only, e.g. "," or " ; "
+        raise LabelError(f"{where}: first line {first[:40]!r} holds no number; {_EXPECTED}")
     token = fields[0]
     if not _NUMBER.fullmatch(token):
         if token.lower().lstrip("+-") in ("nan", "inf", "infinity"):

@@ -40,6 +40,8 @@ def one_sample(tmp_path_factory):
 @example(b"1e308\n")  # accepted at 9ed225d
 @example(b"nan\n")
 @example(b"")
+@example(b",")  # IndexError at a065227: a first line of separators only
+@example(b" ; ,\n2.0\n")
 def test_every_reader_agrees_on_every_label(one_sample, data):
     v = probe_label(one_sample, data)
     assert v.ok, v
