@@ -46,6 +46,7 @@ Timing uses an injectable ``clock`` (ns) so tests drive it deterministically.
 
 from __future__ import annotations
 
+import logging
 import math
 import time
 from collections.abc import Callable, Iterable
@@ -85,6 +86,8 @@ if TYPE_CHECKING:  # the depth code is imported only for depth bundles
     from ..depth import DepthStage
 
 __all__ = ["ForceRuntime"]
+
+_log = logging.getLogger(__name__)
 
 _NO_CONTACT = int(Flags.NO_CONTACT)
 _STALE, _LATE, _INVALID = int(Flags.STALE), int(Flags.LATE), int(Flags.INVALID_INPUT)
@@ -326,7 +329,16 @@ class ForceRuntime:
     def _warm_up(self, live: list[Sensor]) -> None:
         """Each live sensor's gate step once more on its last frame and, when that frame went
         to the model, its judge and depth stage (depth bundles), then one model call on the
-        last input; results thrown away, no state changed (prewarm.py)."""
+        last input; results thrown away, no state changed (prewarm.py). A warm-up that
+        fails turns warm-ups off (one warning): it is never worth a reading."""
+        try:
+            self._warm_parts(live)
+        except Exception as exc:  # noqa: BLE001 - the frame that follows must still be served
+            self._prewarm = None
+            _log.warning("ForceRuntime(%s): a warm-up before a frame failed (%s: %s); warm-ups are off for this "
+                         "runtime", ", ".join(s.name for s in self.sensors), type(exc).__name__, exc)
+
+    def _warm_parts(self, live: list[Sensor]) -> None:
         n = 0
         for s in live:
             lane = self._lanes[s.name]

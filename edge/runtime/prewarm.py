@@ -7,12 +7,13 @@ The runtime knows the cadence from the frames' arrival stamps: :class:`Prewarm` 
 each sensor's next frame is due and, when the core would otherwise rest long enough to go
 cold, has the runtime wake shortly before it and run the per-frame work once on the last
 frame (the exposure check and :meth:`ContactGate.prewarm` into the gate's scratch buffers,
-the judge, the depth stage of depth bundles, the model's bound input once more; every result thrown
-away, no state changed). The real frame then finds the code
-and data warm. The warm-up is timed so that it ends :data:`MARGIN_NS` before the frame is
-due: its own cold duration and how late the rest before it ends (a sleep on a virtual
-machine wakes 0.1 to 0.3 ms late) are measured every time; a frame that arrives early waits
-for it (counted in :attr:`Prewarm.overran`).
+the judge, the depth stage of depth bundles, the model's bound input once more; every result
+thrown away, no state changed). The real frame then finds the code and data warm. The
+warm-up is timed so that it ends :data:`MARGIN_NS` before the frame is due: its own cold
+duration and how late the rest before it ends (a sleep on a virtual machine wakes 0.1 to
+0.3 ms late) are measured every time; a frame that arrives early waits for it (counted in
+:attr:`Prewarm.overran`). A warm-up that fails turns warm-ups off for the runtime (one
+warning); it never costs a reading.
 
 It pays only where the core rests: sources read back to back (files, replays) or frames
 closer than :data:`MIN_GAP_NS` (many sensors phase-shifted keep the core busy) are never

@@ -288,3 +288,18 @@ def test_grabbers_take_returns_nothing_when_the_wait_ends_first():
         assert [x[0] for x in got] == [s] and got[0][1].tf is None
     finally:
         grabbers.stop()
+
+
+def test_a_failing_warm_up_turns_warm_ups_off_and_costs_no_reading(frames, model, monkeypatch, caplog):
+    free, seq = frames
+    seq = seq[:12]
+    want, _ = _run(seq, free, model, 1, prewarm=False, paced=False)
+
+    def broken(self) -> None:
+        raise RuntimeError("warm-up broke")
+
+    monkeypatch.setattr(ContactGate, "prewarm", broken)
+    got, stats = _run(seq, free, model, 1, prewarm=True, paced=True)
+    np.testing.assert_equal(got, want)
+    assert stats.prewarms == 1  # the one that failed; then off
+    assert sum("warm-ups are off" in r.getMessage() for r in caplog.records) == 1
