@@ -32,8 +32,10 @@ MAX_PERIOD_NS = 1_000_000_000
 #: The least rest before the warm-up that makes one worth it (ns): frames of sensors at
 #: 60 fps phase-shifted by under 4 ms (five or more) keep the core warm by themselves.
 MIN_GAP_NS = 4_000_000
-#: How long before the frame is due the warm-up aims to end (ns).
-MARGIN_NS = 300_000
+#: How long before the frame is due the warm-up aims to end (ns): 0.15 ms measured best of
+#: 0.3 / 0.15 / 0.05 (docs/benchmarks/cadence.md); a shorter rest leaves the core warmer, a
+#: frame that comes early waits for the rest of the warm-up.
+MARGIN_NS = 150_000
 #: The warm-up's duration assumed before the first one is timed (ns).
 FIRST_WARM_NS = 700_000
 #: Arrival gaps kept per sensor (the period is their median: a dropped frame does not move it).
