@@ -157,12 +157,9 @@ def to_onnx(net: ForceNet, opset: int = 18) -> bytes:
 def ort_session(model_bytes: bytes, threads: int = 1):
     """A CPU onnxruntime session on model bytes."""
     import onnxruntime as ort
+    from tactile_force.edge.model.onnx_model import session_options
 
-    so = ort.SessionOptions()
-    so.intra_op_num_threads = threads
-    so.inter_op_num_threads = 1
-    so.log_severity_level = 3
-    return ort.InferenceSession(model_bytes, so, providers=["CPUExecutionProvider"])
+    return ort.InferenceSession(model_bytes, session_options(threads), providers=["CPUExecutionProvider"])
 
 
 def run_ort(session, data: CalibrationData, batch_size: int = 4) -> np.ndarray:

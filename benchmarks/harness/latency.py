@@ -154,18 +154,14 @@ class BareOnnxRuntime:
         from tactile_force.edge import load_bundle
         from tactile_force.edge.bundle.manifest import InputKind, Reduction
         from tactile_force.edge.gate.reduce import reduce_frames
+        from tactile_force.edge.model.onnx_model import session_options
 
         path = bundle or case.bundle
         if path is None:
             raise ValueError(f"BareOnnxRuntime: no bundle for {case.label}, {case.precision}")
         b = load_bundle(path)
-        so = ort.SessionOptions()
-        so.intra_op_num_threads = case.threads
-        so.inter_op_num_threads = 1
-        so.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
-        so.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL
-        so.log_severity_level = 3
-        self.sess = ort.InferenceSession(str(b.onnx_path), so, providers=["CPUExecutionProvider"])
+        self.sess = ort.InferenceSession(str(b.onnx_path), session_options(case.threads),
+                                         providers=["CPUExecutionProvider"])
         self.out = [b.manifest.output.name]
         self.pool = pool
         self.inputs = {}

@@ -36,6 +36,21 @@ DEPTH_SHAPE = (FRAME_ROWS, FRAME_COLS, 1)
 LOAD_BATCH = 2
 
 
+def session_options(threads: int = 1):
+    """The onnxruntime session options every session of the package runs with: ``threads``
+    intra-op threads, one inter-op thread, sequential execution, all graph optimisations,
+    warnings off (an ``onnxruntime.SessionOptions``)."""
+    import onnxruntime as ort
+
+    so = ort.SessionOptions()
+    so.intra_op_num_threads = int(threads)
+    so.inter_op_num_threads = 1
+    so.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
+    so.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL
+    so.log_severity_level = 3
+    return so
+
+
 class OnnxForceModel:
     """Force model on the CPU through ONNX Runtime.
 
@@ -67,14 +82,9 @@ class OnnxForceModel:
         self.calibration = cal if calibrate else None
         self.threads = int(threads)
         self._lock = threading.Lock()  # predict: the bound buffers are shared by every caller
-        so = ort.SessionOptions()
-        so.intra_op_num_threads = self.threads
-        so.inter_op_num_threads = 1
-        so.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
-        so.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL
-        so.log_severity_level = 3
         try:
-            self.session = ort.InferenceSession(str(self.bundle.onnx_path), so, providers=["CPUExecutionProvider"])
+            self.session = ort.InferenceSession(str(self.bundle.onnx_path), session_options(self.threads),
+                                                providers=["CPUExecutionProvider"])
         except Exception as exc:  # ORT raises its own Fail/InvalidGraph types
             raise BundleError(f"{self.bundle.onnx_path}: ONNX Runtime cannot load the model ({exc})") from None
         check_graph_contract(self.bundle, self.session)

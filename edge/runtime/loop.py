@@ -83,7 +83,7 @@ from .sensor_watch import SensorWatch, WatchReference
 from .sharing import attach, detach
 
 if TYPE_CHECKING:  # the depth code is imported only for depth bundles
-    from ..depth import DepthStage
+    from ..depth import DepthResult, DepthStage
 
 __all__ = ["ForceRuntime"]
 
@@ -103,8 +103,9 @@ class _Lane:
     gating: GateStep
     watch: SensorWatch
     shared: bool
-    inferred: bool = False  # its last frame went to the model (the next warm-up includes a model call)
-    last: tuple[TimedFrame, float, GateResult] | None = None  # that frame, its raw force, its gate result
+    # with warm-ups: its last frame, raw force and gate result when that frame went to the
+    # model (None otherwise), what the next warm-up runs the judge, depth and model on
+    last: tuple[TimedFrame, float, GateResult] | None = None
 
 
 @dataclass(slots=True)
@@ -244,14 +245,12 @@ class ForceRuntime:
             grabbers = self._start()
             reads = grabbers.take(live, wait_ns / 1e9) if wait_ns >= 0 else grabbers.take(live)
             if not reads and warm is not None:  # rested until shortly before the next frame
-                warm.timed(lambda: self._warm_up(live))
-                self.stats.prewarms = warm.count
+                self._warm_up(warm, live)
                 reads = grabbers.take(live)
         else:
             if wait_ns >= 0 and warm is not None:
                 time.sleep(wait_ns / 1e9)
-                warm.timed(lambda: self._warm_up(live))
-                self.stats.prewarms = warm.count
+                self._warm_up(warm, live)
             reads = [(s, _read(s.source, self.clock)) for s in live]
         for s, rd in reads:
             p = self._acquire(s, rd, out)
@@ -326,35 +325,33 @@ class ForceRuntime:
         if detach(self.model, self.owns_model):
             self.model.close()
 
-    def _warm_up(self, live: list[Sensor]) -> None:
+    def _warm_up(self, warm: Prewarm, live: list[Sensor]) -> None:
+        """The warm-up before the next frame (prewarm.py), timed and counted."""
+        warm.timed(lambda: self._warm_parts(live))
+        self.stats.prewarms = warm.count
+
+    def _warm_parts(self, live: list[Sensor]) -> None:
         """Each live sensor's gate step once more on its last frame and, when that frame went
         to the model, its judge and depth stage (depth bundles), then one model call on the
-        last input; results thrown away, no state changed (prewarm.py). A warm-up that
-        fails turns warm-ups off (one warning): it is never worth a reading."""
+        last input; results thrown away, no state changed. A warm-up that fails turns
+        warm-ups off (one warning): it is never worth a reading."""
         try:
-            self._warm_parts(live)
+            n = 0
+            for s in live:
+                lane = self._lanes[s.name]
+                lane.gating.prewarm()
+                if lane.last is not None:
+                    n += 1
+                    tf, raw, g = lane.last
+                    self._judge.estimate(s.name, tf, raw, g, StageLatency())  # pure: the reading is dropped
+                    if s.depth is not None:  # into the stage's buffers
+                        _depth_of(s.depth, lane.gating.frame, g)
+            if n and self._model_prewarm is not None:
+                self._model_prewarm(n)
         except Exception as exc:  # noqa: BLE001 - the frame that follows must still be served
             self._prewarm = None
             _log.warning("ForceRuntime(%s): a warm-up before a frame failed (%s: %s); warm-ups are off for this "
                          "runtime", ", ".join(s.name for s in self.sensors), type(exc).__name__, exc)
-
-    def _warm_parts(self, live: list[Sensor]) -> None:
-        n = 0
-        for s in live:
-            lane = self._lanes[s.name]
-            lane.gating.prewarm()
-            if lane.inferred and lane.last is not None:
-                n += 1
-                tf, raw, g = lane.last
-                self._judge.estimate(s.name, tf, raw, g, StageLatency())  # pure: the reading is dropped
-                depth = s.depth
-                if depth is not None:  # into the stage's buffers, as _acquire calls it
-                    if g.reduced is not None and g.reduced.shape == depth.grid_frame_shape:
-                        depth.process(g.reduced, g.reduced_mask, checked=True)
-                    else:
-                        depth.process(lane.gating.frame, g.mask)
-        if n and self._model_prewarm is not None:
-            self._model_prewarm(n)
 
     # -- the steps of one frame -------------------------------------------------------------
     def _finish(self, r: ForceReading, start_ns: int) -> ForceReading:
@@ -392,7 +389,7 @@ class ForceRuntime:
         if self._grabbers is not None:
             t1 = self.clock()  # the gate's time starts here (the grabber's read was earlier)
         lane = self._lanes[s.name]
-        lane.inferred = False
+        lane.last = None
         gating = lane.gating
         g = gating.run(tf)  # gate
         if g is None:  # the frame contract or its exposure refused it
@@ -409,18 +406,11 @@ class ForceRuntime:
             out.append(self._finish(self._judge.gated(s.name, tf, g, lat, lane.watch.pressed, s.gate), start))
             return None
         p = _Pending(lane, tf, frame, g, start, lat.source_ms, lat.gate_ms)
-        lane.inferred = True
         if lane.shared:
             p.net = g.reduced
         depth = s.depth
         if depth is not None:  # depth
-            # a depth stage at the network resolution reads the gate's reduced image and mask
-            # (the frame's one downscale); otherwise the frame and the full-resolution mask
-            grid = depth.grid_frame_shape
-            if g.reduced is not None and g.reduced.shape == grid:
-                res = depth.process(g.reduced, g.reduced_mask, checked=True)  # exposure judged in the gate step
-            else:
-                res = depth.process(frame, g.mask)
+            res = _depth_of(depth, frame, g)
             t3 = self.clock()
             p.depth_ms = (t3 - t2) / 1e6
             if not res.ok:
@@ -495,3 +485,12 @@ class ForceRuntime:
             st.background_mismatch += 1
         if f & _OOD:
             st.out_of_distribution += 1
+
+
+def _depth_of(depth: DepthStage, frame: np.ndarray, g: GateResult) -> DepthResult:
+    """The depth stage on one gated frame: a stage at the network resolution reads the gate's
+    reduced image and mask (the frame's one downscale; its exposure was judged in the gate
+    step), otherwise the frame and the full-resolution mask."""
+    if g.reduced is not None and g.reduced.shape == depth.grid_frame_shape:
+        return depth.process(g.reduced, g.reduced_mask, checked=True)
+    return depth.process(frame, g.mask)
