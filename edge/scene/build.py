@@ -150,9 +150,8 @@ def build_scene(scene: Scene, clock: Clock | None = None, warn: Callable[[str], 
     (default: added to the notes of the result, see :class:`LearningWatch`).
 
     OpenCV runs the scene's ``threads`` threads (``cv2.setNumThreads``, process-wide): the
-    gate's calls work on 80 x 60 images, where a thread pool only burns CPU (at 60 fps one
-    sensor's process CPU 9.4 % with OpenCV's default 2 threads, 6.1 % with 1, latency the
-    same: docs/benchmarks/cadence.md)."""
+    gate's calls work on 80 x 60 images, where a thread pool only burns CPU (the benchmarks
+    run the runtime with one OpenCV thread for the same reason)."""
     import time
 
     import cv2
