@@ -65,9 +65,9 @@ def main(args: argparse.Namespace) -> int:
 
     # --out is study's own result folder: never an input, replaced only with --force and only
     # when it is an earlier study result holding nothing else
-    check_output(args.out, [("source", args.source), ("--data", args.data), ("--calib", args.calib),
-                            ("--background", args.background)],
-                 force=args.force, kind=OutputKind.FOLDER, verb="study")
+    inputs = [("source", args.source), ("--data", args.data), ("--calib", args.calib),
+              ("--background", args.background)]
+    check_output(args.out, inputs, force=args.force, kind=OutputKind.FOLDER)
     # one replay per configuration: the gate's and data statistics' warnings would repeat for each
     command = "tactile-force study " + " ".join(shlex.quote(a) for a in sys.argv[2:]) \
         if len(sys.argv) > 1 and sys.argv[1] == "study" else "tactile-force study"
@@ -80,7 +80,7 @@ def main(args: argparse.Namespace) -> int:
     if args.frames < MIN_P99_READINGS:
         print(f"study: --frames {args.frames} is below the {MIN_P99_READINGS} readings a p99 needs: the figures are "
               "measured, no configuration will be recommended", file=sys.stderr)
-    with staged_folder(args.out, "study") as tmp:
+    with staged_folder(args.out, "study", force=args.force, inputs=inputs) as tmp:
         fp32 = prepare_source(args.source, tmp / "bundles", args.variant, args.width, args.input_scale,
                               parity_data=args.data)
         with quiet_loggers("tactile_force.edge.bundle", "tactile_force.edge.gate", "tactile_force.edge.runtime"):

@@ -94,10 +94,12 @@ def _check_args(args: argparse.Namespace) -> list[Path]:
 
     # --out is bench's own result folder: never an input, replaced only with --force and only when
     # it is an earlier bench result holding nothing else
-    check_output(args.out, [("--bundle", b) for b in bundles] + [("--data", args.data),
-                                                                  ("--background", args.background)],
-                 force=args.force, kind=OutputKind.FOLDER, verb="bench")
+    check_output(args.out, _inputs(args, bundles), force=args.force, kind=OutputKind.FOLDER)
     return bundles
+
+
+def _inputs(args: argparse.Namespace, bundles: list[Path]) -> list[tuple[str, Path | None]]:
+    return [("--bundle", b) for b in bundles] + [("--data", args.data), ("--background", args.background)]
 
 
 def main(args: argparse.Namespace) -> int:
@@ -119,12 +121,13 @@ def main(args: argparse.Namespace) -> int:
     if args.cadence_frames < MIN_P99_READINGS:
         print(f"bench: --cadence-frames {args.cadence_frames} is below the {MIN_P99_READINGS} readings a p99 verdict "
               "needs: the figures are measured, the verdict will be 'too few readings'", file=sys.stderr)
-    with quiet_loggers("tactile_force.edge.bundle.data_stats"):
-        report = run_bench(bundles, frames=args.frames, threads=args.threads, budget_ms=args.budget_ms,
-                           data=args.data, background=args.background, repeats=args.repeats,
-                           pause_s=float(args.pause_s), command=command.strip(), fps=args.fps,
-                           cadence_frames=args.cadence_frames)
-    with staged_folder(args.out, "bench") as tmp:
+    # claimed before measuring: a second run into --out is refused, an earlier result proved now
+    with staged_folder(args.out, "bench", force=args.force, inputs=_inputs(args, bundles)) as tmp:
+        with quiet_loggers("tactile_force.edge.bundle.data_stats"):
+            report = run_bench(bundles, frames=args.frames, threads=args.threads, budget_ms=args.budget_ms,
+                               data=args.data, background=args.background, repeats=args.repeats,
+                               pause_s=float(args.pause_s), command=command.strip(), fps=args.fps,
+                               cadence_frames=args.cadence_frames)
         names = [p.name for p in write_report(report, tmp)]
     print(text_table(report))
     print("wrote " + ", ".join(str(args.out / n) for n in names))

@@ -112,8 +112,7 @@ def main(args: argparse.Namespace) -> int:
 
     out = Path(args.out).absolute()
     # a new or empty folder, or (--force) an earlier demo's result holding nothing else; never the bundle
-    check_output(out, [("--bundle", bundle)], force=getattr(args, "force", False), kind=OutputKind.FOLDER,
-                 verb="demo")
+    check_output(out, [("--bundle", bundle)], force=getattr(args, "force", False), kind=OutputKind.FOLDER)
     if problem := output_problem(out.with_name(f".{out.name}.probe")):  # the staging folder is made beside --out
         raise SceneError(f"--out {out}: {problem}")
     try:
@@ -124,7 +123,7 @@ def main(args: argparse.Namespace) -> int:
     print(f"virtual DIGIT: {args.grasps} grasps, seed {args.seed} -> bundle {bundle}")
     from ..files.atomic import staged_folder
 
-    with staged_folder(out, "demo") as tmp:
+    with staged_folder(out, "demo", force=getattr(args, "force", False), inputs=[("--bundle", bundle)]) as tmp:
         s = run_demo(source, bundle, tmp, threads=args.threads, publish_as=out)
     if s.error:
         print(f"error vs truth over {s.error['n']} CNN readings: "

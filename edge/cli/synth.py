@@ -8,7 +8,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 import sys
 from pathlib import Path
 
@@ -34,6 +33,14 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
+#: bytes a sample takes at least (a 320x240 PNG of a DIGIT frame is 100-120 kB; the label, a few bytes)
+SAMPLE_BYTES_MIN = 64 * 1024
+
+
+def _inputs(args: argparse.Namespace) -> list[tuple[str, str | None]]:
+    return [("--background", args.background), ("--normal-to-rgb-mlp", args.normal_to_rgb_mlp)]
+
+
 def _problems(args: argparse.Namespace) -> list[str]:
     """What is wrong with the arguments (before anything is rendered), one line each."""
     out: list[str] = []
@@ -48,19 +55,16 @@ def _problems(args: argparse.Namespace) -> list[str]:
     if args.below_fraction + args.above_fraction > 1.0:
         out.append("--below-fraction + --above-fraction add up to more than 1")
     dest = Path(args.out)
+    from ..files.claim import preflight
     from ..files.guard import OutputKind, OutputRefused, check_output
 
-    try:  # a new or empty folder, or (--force) an earlier synth dataset; never an input
-        check_output(dest, [("--background", args.background), ("--normal-to-rgb-mlp", args.normal_to_rgb_mlp)],
-                     force=args.force, kind=OutputKind.FOLDER, verb="synth")
+    # a new or empty folder, or (--force) an earlier synth dataset (proved when claimed); never an
+    # input; not a link, a mount point, under a read-only or unwritable parent, nor larger than the free space
+    try:
+        check_output(dest, _inputs(args), force=args.force, kind=OutputKind.FOLDER)
+        preflight(dest, "--out", args.n * SAMPLE_BYTES_MIN if args.n >= 1 else None)
     except OutputRefused as exc:
         out.append(str(exc))
-    if dest.exists() and not dest.is_dir():
-        out.append(f"--out {dest}: is a file; expected a folder to create (or an empty one)")
-    else:
-        parent = next((p for p in (dest, *dest.parents) if p.exists()), Path("."))
-        if not parent.is_dir() or not os.access(parent, os.W_OK | os.X_OK):
-            out.append(f"--out {dest}: {parent} is not a writable folder")
     for flag in ("background", "normal_to_rgb_mlp"):
         v = getattr(args, flag)
         if v is not None and not Path(v).is_file():
@@ -101,7 +105,10 @@ def main(args: argparse.Namespace) -> int:
     )
     from ..files.atomic import staged_folder
 
-    with staged_folder(args.out, "synth") as tmp:  # interrupted: no half dataset, no image without its label
+    # claimed and judged before rendering (free space for n samples included); interrupted: no
+    # half dataset, no image without its label
+    with staged_folder(args.out, "synth", force=args.force, inputs=_inputs(args),
+                       expected_bytes=args.n * SAMPLE_BYTES_MIN) as tmp:
         summary = generate_dataset(tmp, options)
     summary.root = Path(args.out)
     print(json.dumps(summary.as_dict(), indent=1))

@@ -1,20 +1,23 @@
 """Publishing an output in one step: a folder or file appears whole, or not at all.
 
-Every verb that writes a folder of results (``bench``, ``study``, ``synth``, ``demo``) or a
-single file (``--save-scene``) writes it into a hidden sibling first and moves it into place
-when the work is done (:func:`staged_folder`, :func:`staged_file`):
+Every verb that writes a folder of results (``bench``, ``study``, ``synth``, ``demo``) enters
+:func:`staged_folder` *before* its work: the output is claimed (:mod:`.claim`: judged, locked
+against a second run, a killed run's leftovers cleaned), checked (:func:`~.guard.check_output`;
+with ``--force`` an existing folder must be proved by its record, :mod:`.record`) and a hidden
+sibling ``.NAME.XXXX.partial`` is made to write into. When the work is done:
 
-- a new ``NAME`` appears by one ``rename``;
-- an existing ``NAME`` (replaced only with ``--force``, checked before any work by
-  :func:`~tactile_force.edge.files.guard.check_output`) is swapped with the new one by one
-  ``renameat2(RENAME_EXCHANGE)`` (Linux), else by two renames;
-- an interrupted or failed run removes its hidden sibling and leaves ``NAME`` as it was: the
-  previous result or nothing, never a half folder that looks finished.
+- the staging folder gets its record (every file's size and sha256, the folder's identity);
+- a new ``NAME`` appears by one ``rename`` that never replaces anything (``RENAME_NOREPLACE``);
+- an existing ``NAME`` is swapped with the new one by one ``renameat2(RENAME_EXCHANGE)``
+  (Linux), else by two renames, and then *verified again*: what appeared or changed in it while
+  the verb ran is never deleted: the swap is undone, nothing is replaced, and the verb fails
+  naming the entry. Otherwise the old folder is removed entry by entry, each only while it is
+  what the record proves;
+- an interrupted or failed run removes its staging folder and leaves ``NAME`` as it was: the
+  previous result or nothing, never a half folder that looks finished. An OS error while writing
+  names the user's path (``--out NAME/...``), never only the hidden staging name.
 
-A folder a verb publishes carries :data:`OUTPUT_MARK`, a small JSON record of the verb and
-every file it wrote. ``--force`` replaces a folder only when that record says the same verb
-made it and lists every file in it (:func:`foreign_files`), so a user's own files added to a
-result folder are never deleted.
+Single files (``--save-scene``, reports, CSV caches) use :func:`staged_file`.
 """
 
 from __future__ import annotations
@@ -22,21 +25,23 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import errno
-import json
 import os
 import shutil
+import sys
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
-__all__ = ["OUTPUT_MARK", "exchange", "foreign_files", "fsync_dir", "publish_folder", "staged_file",
-           "staged_folder"]
+from .record import OUTPUT_MARK, Verification, remove_proved, verify, write_record
 
-#: the record in every published result folder: {"verb": ..., "files": [relative paths]}
-OUTPUT_MARK = ".tactile-force-output.json"
+__all__ = ["OUTPUT_MARK", "exchange", "foreign_files", "fsync_dir", "publish_folder", "rename_noreplace",
+           "staged_file", "staged_folder"]
 
 _AT_FDCWD = -100
+_RENAME_NOREPLACE = 1
 _RENAME_EXCHANGE = 2
+#: OS errors that are about the output's file system, not about one input: named by the output's path
+_WRITE_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EIO, errno.EFBIG}
 
 
 def fsync_dir(path: Path) -> None:
@@ -53,14 +58,15 @@ def fsync_dir(path: Path) -> None:
         os.close(fd)
 
 
-def exchange(a: Path, b: Path) -> bool:
-    """Atomically swap two existing paths (Linux ``renameat2``); False where unsupported."""
+def _renameat2(a: Path, b: Path, flags: int) -> bool:
+    """``renameat2(a, b, flags)``; False where the call or the flag is unsupported, OSError naming
+    ``b`` on any other failure."""
     try:
         libc = ctypes.CDLL(None, use_errno=True)
         fn = libc.renameat2
     except (OSError, AttributeError):
         return False
-    if fn(_AT_FDCWD, os.fsencode(a), _AT_FDCWD, os.fsencode(b), _RENAME_EXCHANGE) == 0:
+    if fn(_AT_FDCWD, os.fsencode(a), _AT_FDCWD, os.fsencode(b), flags) == 0:
         return True
     err = ctypes.get_errno()
     if err in (errno.ENOSYS, errno.EINVAL, errno.ENOTSUP):
@@ -68,77 +74,193 @@ def exchange(a: Path, b: Path) -> bool:
     raise OSError(err, os.strerror(err), str(b))
 
 
-def publish_folder(tmp: Path, dest: Path) -> None:
-    """Move the complete folder ``tmp`` to ``dest`` in one step, replacing ``dest`` if it exists.
-
-    ``dest`` is at every instant the old folder or the new one (exchange), or, where the
-    exchange is unsupported, briefly absent with the old one kept as ``.NAME.old`` until
-    the new one is in place.
-    """
-    fsync_dir(tmp)
-    if not os.path.lexists(dest):
-        os.rename(tmp, dest)
-    elif exchange(tmp, dest):
-        shutil.rmtree(tmp, ignore_errors=True)  # tmp now holds the old folder
-    else:
-        old = dest.with_name(f".{dest.name}.old")
-        shutil.rmtree(old, ignore_errors=True)
-        os.replace(dest, old)
-        os.replace(tmp, dest)
-        shutil.rmtree(old, ignore_errors=True)
-    fsync_dir(dest.parent)
+def exchange(a: Path, b: Path) -> bool:
+    """Atomically swap two existing paths (Linux ``renameat2``); False where unsupported."""
+    return _renameat2(a, b, _RENAME_EXCHANGE)
 
 
-def _files(root: Path) -> list[str]:
-    return sorted(str(p.relative_to(root)) for p in root.rglob("*") if not p.is_dir() and p.name != OUTPUT_MARK)
+def rename_noreplace(a: Path, b: Path) -> bool:
+    """Rename ``a`` to ``b`` only if ``b`` does not exist; False when ``b`` exists (appeared).
+
+    ``renameat2(RENAME_NOREPLACE)`` where supported, else a check and a ``rename`` (which on
+    Linux would replace an empty folder that appeared between the two)."""
+    try:
+        if _renameat2(a, b, _RENAME_NOREPLACE):
+            return True
+    except FileExistsError:
+        return False
+    except OSError as exc:
+        if exc.errno in (errno.EEXIST, errno.ENOTEMPTY):
+            return False
+        raise
+    if os.path.lexists(b):
+        return False
+    os.rename(a, b)
+    return True
 
 
 def foreign_files(folder: str | os.PathLike, verb: str) -> list[str]:
-    """Files in ``folder`` that ``verb`` did not write there (relative paths), per its
-    :data:`OUTPUT_MARK`; every file when the folder carries no record of ``verb``. An empty
-    list: the folder is ``verb``'s own result (or empty) and ``--force`` may replace it."""
-    root = Path(folder)
-    found = _files(root)
-    try:
-        mark = json.loads((root / OUTPUT_MARK).read_text())
-        made = set(mark["files"]) if mark.get("verb") == verb else set()
-    except (OSError, ValueError, KeyError, TypeError, AttributeError):
-        made = set()
-    return [f for f in found if f not in made]
+    """Entries of ``folder`` (relative paths) its record does not prove ``verb`` wrote: added,
+    edited or of another verb (:func:`~.record.verify`). An empty list: ``--force`` may replace it."""
+    return [rel for rel, _ in verify(folder, verb).unproved]
 
 
-def _new_sibling(dest: Path, suffix: str) -> Path:
-    dest.parent.mkdir(parents=True, exist_ok=True)
-    return Path(tempfile.mkdtemp(prefix=f".{dest.name}.", suffix=suffix, dir=dest.parent))
+def _named(exc: OSError, staging: Path, dest: Path) -> OSError:
+    """``exc`` naming the user's path instead of the hidden staging one (``exc`` itself when it is
+    about another path, an input)."""
+    fn = exc.filename
+    t = os.fspath(staging)
+    if fn is not None:
+        s = os.fsdecode(fn)
+        if s != t and not s.startswith(t + os.sep):
+            return exc
+        path = os.fspath(dest) + s[len(t):]
+    elif exc.errno in _WRITE_ERRNOS:
+        path = os.fspath(dest)
+    else:
+        return exc
+    what = exc.strerror or str(exc)
+    return OSError(exc.errno, f"{what} (while writing the result; nothing was published, what was there "
+                              "before is kept)", path)
+
+
+class _Refused(Exception):
+    """Publishing found something it may not replace (carries the message)."""
+
+
+def publish_folder(tmp: Path, dest: Path, verb: str, *, force: bool = False, known: Verification | None = None,
+                   flag: str = "--out") -> list[str]:
+    """Move the complete folder ``tmp`` (with its record) to ``dest`` in one step.
+
+    A new ``dest`` appears by a rename that never replaces. An existing ``dest`` is swapped with
+    ``tmp`` (exchange, else two renames) and verified again: it may go only when it is empty, or
+    with ``force`` when its record proves every entry; else the swap is undone and
+    :class:`~.guard.OutputRefused` names the first entries. The old folder is removed entry by
+    proved entry; if something appeared in the instant between, the rest is kept as
+    ``NAME.kept-XXXX`` beside it (named on stderr).
+
+    Returns
+    -------
+    list[str] : what was kept beside ``dest`` (empty normally).
+    """
+    from .guard import OutputRefused
+
+    fsync_dir(tmp)
+    if not os.path.lexists(dest) and rename_noreplace(tmp, dest):
+        fsync_dir(dest.parent)
+        return []
+    if dest.is_symlink() or not dest.is_dir():
+        raise OutputRefused(f"{flag} {dest}: {'a symbolic link' if dest.is_symlink() else 'a file'} appeared there "
+                            f"while 'tactile-force {verb}' ran; nothing was replaced and the new result was discarded")
+    swapped = exchange(tmp, dest)
+    old = tmp if swapped else dest.with_name(f".{dest.name}.{os.urandom(4).hex()}.old")
+    if not swapped:
+        os.rename(dest, old)
+    v = verify(old, verb, known)
+    if not (v.empty or (force and v.proved and v.has_record)):
+        if swapped:
+            exchange(tmp, dest)
+        else:
+            os.rename(old, dest)
+        if force:
+            why = v.describe()
+            raise OutputRefused(f"{flag} {dest}: holds what 'tactile-force {verb}' cannot prove it wrote: {why} "
+                                "(it appeared or changed while the verb ran); nothing was replaced or deleted and the "
+                                "new result was discarded")
+        raise OutputRefused(f"{flag} {dest}: appeared while 'tactile-force {verb}' ran and is not empty; nothing was "
+                            "replaced and the new result was discarded (pass --force to replace an earlier result of "
+                            "the same command)")
+    if not swapped and not rename_noreplace(tmp, dest):
+        keep = dest.with_name(f"{dest.name}.kept-{os.urandom(3).hex()}")
+        os.rename(old, keep)
+        raise OutputRefused(f"{flag} {dest}: appeared again while its earlier content was moved aside (kept as "
+                            f"{keep}); nothing was deleted and the new result was discarded")
+    kept: list[str] = []
+    if remove_proved(old, v):
+        keep = dest.with_name(f"{dest.name}.kept-{os.urandom(3).hex()}")
+        os.rename(old, keep)
+        kept.append(str(keep))
+        print(f"tactile-force {verb}: {flag} {dest}: something appeared in the earlier result while it was being "
+              f"replaced; kept as {keep}", file=sys.stderr)
+    fsync_dir(dest.parent)
+    return kept
+
+
+def _refuse_unproved(dest: Path, verb: str, flag: str, v: Verification) -> None:
+    from .guard import OutputRefused
+
+    raise OutputRefused(f"{flag} {dest}: holds what 'tactile-force {verb}' cannot prove it wrote: {v.describe()}; "
+                        "--force deletes only an earlier result of the same command whose record proves every entry "
+                        "(each file's size and sha256): expected a new folder, or move these away")
 
 
 @contextlib.contextmanager
-def staged_folder(dest: str | os.PathLike, verb: str) -> Iterator[Path]:
-    """Write a result folder in a hidden sibling and publish it as ``dest`` when the block ends.
+def staged_folder(dest: str | os.PathLike, verb: str, *, force: bool = False,
+                  inputs: Iterable[tuple[str, str | os.PathLike | None]] = (), flag: str = "--out",
+                  expected_bytes: int | None = None) -> Iterator[Path]:
+    """Claim ``dest``, judge it, and yield a hidden sibling to write the result into; publish it
+    as ``dest`` when the block ends. Enter it *before* the work: every refusal comes first.
 
     Parameters
     ----------
-    dest : the result folder (checked beforehand with ``check_output(..., verb=verb)``).
-    verb : the command writing it (recorded in :data:`OUTPUT_MARK`).
+    dest : the result folder.
+    verb : the command writing it (recorded in :data:`OUTPUT_MARK`; a second run of any verb into
+        the same ``dest`` is refused while this one holds it).
+    force : the user passed ``--force``: an existing ``dest`` is replaced when its record proves
+        every entry (an empty folder needs no ``--force``).
+    inputs : (flag, path) of what the verb reads: ``dest`` must not be, hold or lie in any.
+    flag : the flag that gave ``dest``, for messages.
+    expected_bytes : about how large the result will be (checked against the free space), or None.
 
     Yields
     ------
     Path : the folder to write into; it becomes ``dest`` when the block ends normally. On any
         exception (``KeyboardInterrupt`` and SIGTERM included) it is removed and ``dest`` is
-        left as it was.
+        left as it was; an OS error names ``dest``.
+
+    Raises
+    ------
+    OutputRefused : before the block runs (a link, a mount point, read-only, no space, another run,
+        an input, exists without ``force``, unproved entries) or at publishing (something appeared).
     """
+    from .claim import STAGING_MARK, OutputClaim
+    from .guard import OutputKind, OutputRefused, check_output
+
     dest = Path(dest)
-    tmp = _new_sibling(dest, ".partial")
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(tmp, 0o777 & ~umask)  # mkdtemp makes it 0700; a result is readable like any folder
+    claim = OutputClaim(dest, verb, flag, expected_bytes).acquire()
+    published = False
+    tmp: Path | None = None
     try:
-        yield tmp
-        (tmp / OUTPUT_MARK).write_text(json.dumps({"verb": verb, "files": _files(tmp)}, indent=1) + "\n")
-        publish_folder(tmp, dest)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
+        check_output(dest, inputs, force=force, kind=OutputKind.FOLDER, flag=flag)
+        known: Verification | None = None
+        if force and dest.is_dir():
+            known = verify(dest, verb)
+            if not (known.empty or known.proved):
+                _refuse_unproved(dest, verb, flag, known)
+        try:
+            tmp = Path(tempfile.mkdtemp(prefix=f".{dest.name}.{claim.id}.", suffix=".partial", dir=claim.lock.parent))
+            (tmp / STAGING_MARK).write_text(claim.id + "\n")
+            umask = os.umask(0)
+            os.umask(umask)
+            os.chmod(tmp, 0o777 & ~umask)  # mkdtemp makes it 0700; a result is readable like any folder
+        except OSError as exc:
+            raise OutputRefused(f"{flag} {dest}: cannot create its staging folder beside it "
+                                f"({exc.strerror or exc})") from None
+        try:
+            yield tmp
+            write_record(tmp, verb, exclude=(STAGING_MARK,))
+            os.unlink(tmp / STAGING_MARK)
+            publish_folder(tmp, dest, verb, force=force, known=known, flag=flag)
+            published = True
+        except OSError as exc:
+            named = _named(exc, tmp, dest)
+            if named is exc:
+                raise
+            raise named from exc
+    finally:
+        if tmp is not None and not published:
+            shutil.rmtree(tmp, ignore_errors=True)
+        claim.release(published)
 
 
 @contextlib.contextmanager
@@ -147,7 +269,8 @@ def staged_file(dest: str | os.PathLike) -> Iterator[Path]:
 
     Yields
     ------
-    Path : the path to write; on an exception it is removed and ``dest`` is left as it was.
+    Path : the path to write; on an exception it is removed and ``dest`` is left as it was (an
+        OS error about the hidden file names ``dest``).
     """
     dest = Path(dest)
     dest.parent.mkdir(parents=True, exist_ok=True)
@@ -155,12 +278,18 @@ def staged_file(dest: str | os.PathLike) -> Iterator[Path]:
     os.close(fd)
     tmp = Path(name)
     try:
-        yield tmp
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, dest)
-        fsync_dir(dest.parent)
+        try:
+            yield tmp
+            umask = os.umask(0)
+            os.umask(umask)
+            os.chmod(tmp, 0o666 & ~umask)
+            os.replace(tmp, dest)
+            fsync_dir(dest.parent)
+        except OSError as exc:
+            named = _named(exc, tmp, dest)
+            if named is exc:
+                raise
+            raise named from exc
     except BaseException:
         with contextlib.suppress(OSError):
             tmp.unlink()

@@ -9,6 +9,7 @@ Every command that reads inputs and writes an output (``export``, ``quantize``, 
 * an output that *is* an input, lies *inside* an input, or *contains* an input is refused,
   ``--force`` or not (``--out`` = the presses folder, ``--out`` = the folder holding the
   checkpoint, ``quantize B --out B``);
+* a folder or bundle output that is a symbolic link is refused (it would be replaced, not followed);
 * an existing output is refused without ``--force`` (an empty folder is not); with ``--force`` a *bundle* output may
   only replace a bundle folder (one holding ``model.json``) or an empty folder, never a
   folder of other files, and a *file* output only a regular file;
@@ -117,8 +118,10 @@ def check_output(out: str | os.PathLike, inputs: Iterable[InputPath | tuple[str,
     allow_existing : the verb adds to an existing output itself (``compress`` resumes from its
         ``--out``): an existing folder is not refused, inputs still are.
     verb : the command that writes a *folder* of results (``bench``, ``study``, ...): with
-        ``--force`` an existing folder is replaced only when it is that verb's own earlier
-        result and holds no other file (:func:`~tactile_force.edge.files.atomic.foreign_files`).
+        ``--force`` an existing folder is replaced only when its record proves every entry is
+        that verb's own earlier result (:func:`~tactile_force.edge.files.record.verify`; the
+        verbs leave this to :func:`~tactile_force.edge.files.atomic.staged_folder`, which
+        checks it under the output's claim).
 
     Returns
     -------
@@ -145,6 +148,10 @@ def check_output(out: str | os.PathLike, inputs: Iterable[InputPath | tuple[str,
         if _within(real_out, real_in) and real_in.is_dir():
             raise OutputRefused(f"{flag} {given}: is inside the input {in_flag} {in_path}; inputs are never "
                                 "changed: expected a path outside every input")
+    if kind is not OutputKind.FILE and not allow_existing and given.is_symlink():
+        raise OutputRefused(f"{flag} {given}: is a symbolic link (to {os.readlink(given)}); a {kind.value} is never "
+                            f"written through a link nor replaces one: give the folder itself "
+                            f"({os.path.realpath(given)}) or a new path")
     kind_now = special_file_kind(given)
     if kind_now is not None:
         raise OutputRefused(f"{flag} {given}: is a {kind_now}; expected a new {kind.value} path")
@@ -164,13 +171,13 @@ def check_output(out: str | os.PathLike, inputs: Iterable[InputPath | tuple[str,
     if not force:
         raise OutputRefused(f"{flag} {given}: already exists; pass --force to replace it, or give a new folder")
     if verb is not None:
-        from .atomic import foreign_files
+        from .record import verify
 
-        foreign = foreign_files(given, verb)
-        if foreign:
-            shown = ", ".join(foreign[:3]) + (f" and {len(foreign) - 3} more" if len(foreign) > 3 else "")
-            raise OutputRefused(f"{flag} {given}: holds files that 'tactile-force {verb}' did not write ({shown}); "
-                                "--force replaces only an earlier result of the same command: expected a new folder")
+        v = verify(given, verb)
+        if not v.proved:
+            raise OutputRefused(f"{flag} {given}: holds what 'tactile-force {verb}' cannot prove it wrote: "
+                                f"{v.describe()}; --force deletes only an earlier result of the same command whose "
+                                "record proves every entry (each file's size and sha256): expected a new folder")
     if kind is OutputKind.BUNDLE:
         entries = [e.name for e in given.iterdir()]
         if entries and "model.json" not in entries:
