@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import hashlib
 import json
 import math
 import os
@@ -42,6 +43,7 @@ from hypothesis import strategies as st
 from .harness.cases import (
     Outcome,
     Verdict,
+    cli_verdict,
     default_bundle_dir,
     run_cli,
     toml_text,
@@ -116,9 +118,10 @@ class Inputs:
         """A tiny RGBmod checkpoint (``compress``'s teacher)."""
         return tiny_checkpoint(self.root / "inputs" / "teacher" / "teacher.pth")
 
-    def earlier(self, verb: str) -> Path:
-        """A complete earlier result of ``verb`` (made once; cases copy it)."""
-        out = self.root / "earlier" / verb
+    def earlier(self, verb: str, out: Path | None = None) -> Path:
+        """A complete earlier result of ``verb``, made at ``out`` (default: made once under
+        ``root``, for cases that copy it: a copy is not the folder its record proves)."""
+        out = out if out is not None else self.root / "earlier" / verb
         if not out.is_dir():
             rc, _, err = run_cli(VERBS[verb].argv(self, out))
             if rc not in VERBS[verb].ok_rc or not out.is_dir():
@@ -213,6 +216,8 @@ def _users_folder(out: Path, own_name: str) -> Path:
     return out
 
 
+#: the record a result folder carries (edge/files/record.py; spelled here: the suite also checks older packages)
+_MARK = ".tactile-force-output.json"
 _OWN_NAME = {"bench": "report.md", "study": "study.md", "synth": "meta.jsonl", "demo": "readings.csv"}
 
 
@@ -238,8 +243,8 @@ def _result_cases(inputs: Inputs, spec: Verb) -> list[Case]:
         argv = spec.argv(inputs, out) + (["--force"] if force else [])
         return _with_leftovers(guarded(argv, [out, *reads], True, ("--out", str(out))), out)
 
-    def earlier() -> Path:
-        return Path(shutil.copytree(inputs.earlier(name), inputs.folder(name) / "r", symlinks=True))
+    def earlier() -> Path:  # made in place: --force replaces only the folder its record was made for
+        return inputs.earlier(name, inputs.folder(name) / "r")
 
     def earlier_plus_users() -> Verdict:
         out = earlier()
@@ -275,6 +280,7 @@ def _result_cases(inputs: Inputs, spec: Verb) -> list[Case]:
         (f"{name} --out <its earlier result + a user's file> --force", earlier_plus_users),
         (f"{name} twice into the same --out without --force", twice),
         (f"{name} --force over its own earlier result (valid)", replaced)]
+    cases += _proof_cases(inputs, spec, earlier) + _claim_cases(inputs, spec)
     for flag, path in spec.reads(inputs):
         if path.is_dir():
             cases += [(f"{name} --out <the {flag} folder> --force", functools.partial(onto_input, path, False)),
@@ -283,6 +289,151 @@ def _result_cases(inputs: Inputs, spec: Verb) -> list[Case]:
             cases += [(f"{name} --out <the {flag} file> --force", functools.partial(onto_input, path, False)),
                       (f"{name} --out <the folder holding the {flag} file> --force",
                        functools.partial(onto_input, path.parent, False))]
+    return cases
+
+
+def tree(root: Path) -> dict[str, str]:
+    """relative path -> sha256 (files), 'dir' (folders), '-> target' (links) of everything under
+    ``root``, links not followed (``digest`` misses empty folders and follows links)."""
+    if not root.is_dir():
+        return {".": digest(root) or "absent"} if not root.is_symlink() else {".": f"-> {os.readlink(root)}"}
+    out: dict[str, str] = {}
+    for q in sorted(root.rglob("*")):
+        rel = str(q.relative_to(root))
+        out[rel] = (f"-> {os.readlink(q)}" if q.is_symlink() else "dir" if q.is_dir() else
+                    hashlib.sha256(q.read_bytes()).hexdigest())
+    return out
+
+
+def _kept(argv: list[str], out: Path, names: tuple[str, ...], want_rc: frozenset[int] = frozenset({2})) -> Verdict:
+    """``argv`` in-process, expected to refuse (exit 2 naming ``names``) and keep everything at
+    ``out`` as it was, links and empty folders included (else **data lost**), with no hidden
+    sibling left (else **silent wrong**)."""
+    before = tree(out)
+    v = cli_verdict(argv, set(want_rc), True, names)
+    if tree(out) != before:
+        gone = sorted(set(before) - set(tree(out)))
+        return Verdict(Outcome.DATA_LOST, f"{' '.join(argv[:1])}: {out.name} changed; gone or changed: {gone[:4]}")
+    return _with_leftovers(v, out)
+
+
+def _proof_cases(inputs: Inputs, spec: Verb, earlier: Callable[[], Path]) -> list[Case]:
+    """--force over what the record does not prove: a names-only record listing the user's file,
+    a copy of an earlier result, a recorded file replaced by a link, an added empty folder, an
+    edited file; --out a symbolic link to the user's folder (with and without --force)."""
+    name = spec.name
+
+    def names_only() -> Verdict:
+        out = _users_folder(inputs.folder(name) / "mine", _OWN_NAME[name])
+        (out / _MARK).write_text(json.dumps({"verb": name, "files": ["notes.txt", _OWN_NAME[name]]}))
+        return _kept(spec.argv(inputs, out) + ["--force"], out, ("--out", "notes.txt"))
+
+    def copied() -> Verdict:
+        out = Path(shutil.copytree(inputs.earlier(name), inputs.folder(name) / "backup", symlinks=True))
+        return _kept(spec.argv(inputs, out) + ["--force"], out, ("--out", "another folder"))
+
+    def changed(how: str) -> Verdict:
+        out = earlier()
+        own = next(p for p in sorted(out.rglob("*")) if p.is_file() and p.name != _MARK)
+        rel = str(own.relative_to(out))
+        if how == "link":
+            mine = out.parent / "my_file.txt"
+            mine.write_text("the user's own file\n")
+            own.unlink()
+            own.symlink_to(mine)
+        elif how == "edited":
+            data = bytearray(own.read_bytes())
+            data[len(data) // 2] ^= 0x01  # same size: only the hash tells
+            own.write_bytes(bytes(data))
+        else:
+            rel = "my_plots"
+            (out / rel).mkdir()
+        return _kept(spec.argv(inputs, out) + ["--force"], out, ("--out", rel))
+
+    def link(force: bool) -> Verdict:
+        d = inputs.folder(name)
+        mine = _users_folder(d / "my_folder", _OWN_NAME[name])
+        out = d / "link"
+        out.symlink_to(mine)
+        before = tree(mine)
+        v = _kept(spec.argv(inputs, out) + (["--force"] if force else []), out, ("--out", "symbolic link"))
+        return v if tree(mine) == before else Verdict(Outcome.DATA_LOST, f"the link's target {mine.name} changed")
+
+    return [(f"{name} --force over a names-only record listing the user's files", names_only),
+            (f"{name} --force over a copy of its earlier result (the record proves another folder)", copied),
+            (f"{name} --force over its earlier result, a file replaced by a link to the user's file",
+             functools.partial(changed, "link")),
+            (f"{name} --force over its earlier result, a file edited (same size)",
+             functools.partial(changed, "edited")),
+            (f"{name} --force over its earlier result + an empty folder", functools.partial(changed, "folder")),
+            (f"{name} --out <a symbolic link to the user's folder>", functools.partial(link, False)),
+            (f"{name} --out <a symbolic link to the user's folder> --force", functools.partial(link, True))]
+
+
+def _claim_cases(inputs: Inputs, spec: Verb) -> list[Case]:
+    """Two runs at once into the same new --out (the second refused naming it, the first's
+    result whole), kill -9 then the same command (nothing hidden left after it), --out a
+    mount point and --out under a read-only file system (tmpfs, root only: refused before any
+    work, naming --out, never the hidden staging name)."""
+    name = spec.name
+
+    def concurrent() -> Verdict:
+        out = inputs.folder(name) / "r"
+        proc = subprocess.Popen([sys.executable, str(TF_CLI), *spec.long_argv(inputs, out)],
+                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        err = _Stderr(proc)
+        try:
+            end = time.monotonic() + START_S
+            while time.monotonic() < end and proc.poll() is None and not _AT_WORK[name](out, err.lines, False):
+                time.sleep(0.05)
+            if proc.poll() is not None or not _AT_WORK[name](out, err.lines, False):
+                return Verdict(Outcome.HANG, f"the first run was not at work within {START_S:g} s: {err.text()[-200:]}")
+            v = cli_verdict(spec.argv(inputs, out), {2}, True, ("--out", "writing it now"))
+        finally:
+            proc.send_signal(signal.SIGINT)
+            try:
+                proc.wait(timeout=STOP_S)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+        return _with_leftovers(v, out)
+
+    def killed() -> Verdict:
+        out = inputs.folder(name) / "r"
+        proc = subprocess.Popen([sys.executable, str(TF_CLI), *spec.long_argv(inputs, out)],
+                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        err = _Stderr(proc)
+        end = time.monotonic() + START_S
+        while time.monotonic() < end and proc.poll() is None and not _AT_WORK[name](out, err.lines, False):
+            time.sleep(0.05)
+        proc.kill()
+        proc.wait()
+        v = guarded(spec.argv(inputs, out), [], False, want_rc=set(spec.ok_rc))
+        return _with_leftovers(v, out)
+
+    def mounted(opts: str, inside: bool) -> Verdict:
+        d = inputs.folder(name)
+        mnt = d / "mnt"
+        mnt.mkdir()
+        r = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size=4096k{opts}", "tmpfs", str(mnt)],
+                           capture_output=True, text=True)
+        if r.returncode != 0:
+            return Verdict(Outcome.CLEAR, f"not judged: cannot mount a tmpfs ({r.stderr.strip()[:80]})")
+        try:
+            out = mnt / "r" if inside else mnt
+            what = "read-only" if inside else "mount point"
+            v = _kept(spec.argv(inputs, out), out, ("--out", what))
+            if ".partial" in v.detail:
+                return Verdict(Outcome.TRACEBACK, f"the message names the hidden staging folder: {v.detail}")
+            return v
+        finally:
+            subprocess.run(["umount", str(mnt)], capture_output=True)
+
+    cases: list[Case] = [(f"{name} twice at once into the same new --out", concurrent),
+                         (f"kill -9 during {name}, then the same command", killed)]
+    if hasattr(os, "geteuid") and os.geteuid() == 0 and shutil.which("mount"):
+        cases += [(f"{name} --out <a mount point (tmpfs)>", functools.partial(mounted, "", False)),
+                  (f"{name} --out <inside a read-only tmpfs>", functools.partial(mounted, ",ro", True))]
     return cases
 
 
@@ -453,7 +604,7 @@ def signal_cases(inputs: Inputs, examples: int) -> Cases:
             return probe_signal(spec.long_argv(inputs, out), out, signal.SIGINT, _AT_WORK[spec.name], False)
 
         def over_earlier(spec: Verb = spec) -> Verdict:
-            out = Path(shutil.copytree(inputs.earlier(spec.name), inputs.folder(spec.name) / "r"))
+            out = inputs.earlier(spec.name, inputs.folder(spec.name) / "r")
             return probe_signal(spec.long_argv(inputs, out) + ["--force"], out, signal.SIGTERM, _AT_WORK[spec.name],
                                 True)
 

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import BundleError
+from ..files.atomic import _named, rename_noreplace
 from ..files.atomic import exchange as _exchange
 from ..files.atomic import fsync_dir as _fsync_dir
 from .manifest import Manifest, manifest_from_json
@@ -158,6 +159,8 @@ def stale_partials(dest: str | os.PathLike) -> list[Path]:
     out = []
     for cand in dest.parent.glob(f".{dest.name}.*.partial"):
         pid_file = cand / _PID_FILE
+        if cand.is_symlink() or not (pid_file.is_file() or (cand / "model.json").is_file()):
+            continue  # neither a bundle writer's partial nor a swapped-out bundle: never removed
         try:
             pid = int(pid_file.read_text().strip())
         except (OSError, ValueError):
@@ -205,10 +208,22 @@ def write_bundle(dest: str | os.PathLike, onnx_bytes: bytes, manifest: Manifest,
         The written bundle, read back and verified.
     """
     dest = Path(dest)
+    if dest.is_symlink():  # the link itself would be swapped out (and left hidden): never replaced
+        raise BundleError(f"{dest}: is a symbolic link (to {os.readlink(dest)}); a bundle is never written through "
+                          f"a link nor replaces one: give the folder itself ({os.path.realpath(dest)}) or a new path")
     if inputs:
         from ..files.guard import OutputKind, check_output
 
         check_output(dest, inputs, force=True, kind=OutputKind.BUNDLE, flag="bundle destination")
+    from ..files.claim import OutputClaim
+
+    with OutputClaim(dest, "bundle", flag="bundle destination"):  # one writer at a time, judged first
+        return _write_claimed(dest, onnx_bytes, manifest, extra_files, overwrite)
+
+
+def _write_claimed(dest: Path, onnx_bytes: bytes, manifest: Manifest, extra_files: dict[str, bytes] | None,
+                   overwrite: bool) -> Bundle:
+    """:func:`write_bundle` once ``dest`` is claimed."""
     _recover(dest)
     for stale in stale_partials(dest):
         shutil.rmtree(stale, ignore_errors=True)
@@ -245,8 +260,9 @@ def write_bundle(dest: str | os.PathLike, onnx_bytes: bytes, manifest: Manifest,
         _phase("files-written")
         (tmp / _PID_FILE).unlink()
         _fsync_dir(tmp)
-        if not dest.exists():
-            os.rename(tmp, dest)
+        if not os.path.lexists(dest):
+            if not rename_noreplace(tmp, dest):  # appeared meanwhile (not through this package: it is claimed)
+                raise BundleError(f"{dest}: appeared while the bundle was written; nothing was replaced")
         elif _exchange(tmp, dest):
             _phase("exchanged")
             shutil.rmtree(tmp, ignore_errors=True)  # tmp now holds the old bundle
@@ -257,8 +273,10 @@ def write_bundle(dest: str | os.PathLike, onnx_bytes: bytes, manifest: Manifest,
             os.replace(tmp, dest)
             shutil.rmtree(old, ignore_errors=True)
         _fsync_dir(dest.parent)
-    except BaseException:
+    except BaseException as exc:
         shutil.rmtree(tmp, ignore_errors=True)
         _recover(dest)
+        if isinstance(exc, OSError) and (named := _named(exc, tmp, dest)) is not exc:
+            raise named from exc  # a full disk names the bundle, not its hidden staging folder
         raise
     return load_bundle(dest)

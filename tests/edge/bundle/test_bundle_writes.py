@@ -115,3 +115,31 @@ def test_hash_mismatch_and_missing_files(tmp_path):
     (dest / "model.onnx").unlink()
     with pytest.raises(BundleError, match="ONNX file missing"):
         load_bundle(dest)
+
+
+def test_a_bundle_destination_that_is_a_link_is_refused_never_replaced(old_bundle, tmp_path):
+    link = tmp_path / "link"
+    link.symlink_to(old_bundle)
+    b = load_bundle(old_bundle)
+    with pytest.raises(BundleError, match="is a symbolic link"):
+        write_bundle(link, b.onnx_path.read_bytes(), b.manifest, overwrite=True)
+    assert link.is_symlink() and sorted(p.name for p in tmp_path.iterdir()) == ["bundle", "link"]
+
+
+def test_a_bundle_being_written_is_claimed(old_bundle):
+    from tactile_force.edge.files.claim import OutputBusy, OutputClaim
+
+    b = load_bundle(old_bundle)
+    with OutputClaim(old_bundle, "export"), pytest.raises(OutputBusy, match="is writing it now"):
+        write_bundle(old_bundle, b.onnx_path.read_bytes(), b.manifest, overwrite=True)
+    assert load_bundle(old_bundle).manifest.name == "old"
+    assert sorted(p.name for p in old_bundle.parent.iterdir()) == ["bundle"]
+
+
+def test_a_partial_that_is_not_a_bundle_writers_is_never_removed(old_bundle):
+    other = old_bundle.parent / ".bundle.abc.partial"
+    other.mkdir()
+    (other / "notes.txt").write_text("not a bundle")
+    b = load_bundle(old_bundle)
+    write_bundle(old_bundle, b.onnx_path.read_bytes(), b.manifest, overwrite=True)
+    assert (other / "notes.txt").read_text() == "not a bundle"
