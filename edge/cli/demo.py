@@ -103,7 +103,7 @@ def configure(p: argparse.ArgumentParser) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from ..scene import default_bundle_path, output_problem
+    from ..scene import default_bundle_path
 
     bundle = default_bundle_path() if args.bundle == "default" else Path(args.bundle)
     if not (bundle / "model.json").is_file():
@@ -113,8 +113,6 @@ def main(args: argparse.Namespace) -> int:
     out = Path(args.out).absolute()
     # a new or empty folder, or (--force) an earlier demo's result holding nothing else; never the bundle
     check_output(out, [("--bundle", bundle)], force=getattr(args, "force", False), kind=OutputKind.FOLDER)
-    if problem := output_problem(out.with_name(f".{out.name}.probe")):  # the staging folder is made beside --out
-        raise SceneError(f"--out {out}: {problem}")
     try:
         from ..synthetic import VirtualDigitSource
     except ImportError as exc:
@@ -123,6 +121,7 @@ def main(args: argparse.Namespace) -> int:
     print(f"virtual DIGIT: {args.grasps} grasps, seed {args.seed} -> bundle {bundle}")
     from ..files.atomic import staged_folder
 
+    # claimed and judged (a link, a mount point, a read-only or unwritable parent) before the run
     with staged_folder(out, "demo", force=getattr(args, "force", False), inputs=[("--bundle", bundle)]) as tmp:
         s = run_demo(source, bundle, tmp, threads=args.threads, publish_as=out)
     if s.error:
