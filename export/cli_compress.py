@@ -54,7 +54,9 @@ def check_compress_folder(out: Path, force: bool) -> None:
 
     if not out.is_dir():
         return
-    ours = set(COMPRESS_ENTRIES)
+    from tactile_force.edge.files.claim import CLAIM_INSIDE
+
+    ours = {*COMPRESS_ENTRIES, CLAIM_INSIDE}
     foreign = sorted(e.name for e in out.iterdir()  # also the hidden siblings its atomic writes leave when killed
                      if e.name not in ours and not any(e.name.startswith(f".{n}.") for n in ours))
     if foreign:
@@ -79,8 +81,23 @@ def students_plot(students: list[dict], budget_ms: float, out: str) -> Path:
 
 
 def main(args: argparse.Namespace) -> int:
-    from tactile_force.edge.errors import BundleError
     from tactile_force.edge.files.guard import OutputKind, check_output
+
+    # --out is compress's own folder (a rerun resumes from it); it must not be, hold or lie in an input
+    check_output(args.out, [("teacher", args.teacher), ("--labels", args.labels),
+                            ("--background", getattr(args, "background", None))]
+                 + [("--frames", f) for f in args.frames], kind=OutputKind.FOLDER, allow_existing=True)
+    from tactile_force.edge.files.claim import OutputClaim
+
+    # one compress per --out (a second would train into the same work/), judged under the claim
+    with OutputClaim(args.out, "compress", inside=True):
+        check_compress_folder(Path(args.out), force=getattr(args, "force", False))
+        return _compress_claimed(args)
+
+
+def _compress_claimed(args: argparse.Namespace) -> int:
+    """:func:`main` once ``--out`` is claimed and judged."""
+    from tactile_force.edge.errors import BundleError
 
     from .checkpoint import CheckpointError
     from .compress import (
@@ -92,11 +109,6 @@ def main(args: argparse.Namespace) -> int:
     )
     from .training import Augment
 
-    # --out is compress's own folder (a rerun resumes from it); it must not be, hold or lie in an input
-    check_output(args.out, [("teacher", args.teacher), ("--labels", args.labels),
-                            ("--background", getattr(args, "background", None))]
-                 + [("--frames", f) for f in args.frames], kind=OutputKind.FOLDER, allow_existing=True)
-    check_compress_folder(Path(args.out), force=getattr(args, "force", False))
     try:
         if args.epochs < 1 or args.max_frames < 20:
             raise CompressError("--epochs must be >= 1 and --max-frames >= 20")

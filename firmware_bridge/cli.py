@@ -113,7 +113,10 @@ def main_repair(root: Path) -> int:
         print(f"tactile-force record: error: --repair {root}: not a recording folder (no images/ inside)",
               file=sys.stderr)
         return 2
-    print(repair_dataset(root).describe())
+    from tactile_force.edge.files.claim import OutputClaim
+
+    with OutputClaim(root, "record", flag="--repair", inside=True):  # never while a recorder writes there
+        print(repair_dataset(root).describe())
     try:
         data = AuthorsDataset(root)
         data.forces()

@@ -188,6 +188,15 @@ def record(source: FrameSource, reference: ForceReference, options: RecordOption
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise DatasetError(f"{out}: cannot create the recording folder ({exc.strerror or exc})") from None
+    from tactile_force.edge.files.claim import OutputClaim
+
+    # one recorder per folder: a second one would 'repair' away the first one's sample in flight
+    with OutputClaim(out, "record", inside=True):
+        return _record_claimed(out, source, reference, options)
+
+
+def _record_claimed(out: Path, source: FrameSource, reference: ForceReference, options: RecordOptions) -> RecordResult:
+    """:func:`record` once ``out`` is claimed."""
     report = repair_dataset(out)
     if report.changed:
         log.warning("repaired what an interrupted recording left: %s", report.describe())

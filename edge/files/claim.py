@@ -9,7 +9,8 @@ work, and held until the folder is published (or the run ends):
   lies on a read-only file system, less free space than the expected size;
 - an exclusive lock (``fcntl.flock``) on ``.NAME.tactile-force-claim`` beside the output: a
   second run into the same output is refused at once, naming the running one (the kernel drops
-  the lock of a killed run, so a ``kill -9`` never leaves the output locked);
+  the lock of a killed run, so a ``kill -9`` never leaves the output locked). A folder a verb
+  adds to (``record``, ``compress`` resuming) is only locked, by :data:`CLAIM_INSIDE` in it;
 - leftovers of a killed run beside the output are cleaned up under the lock
   (:func:`clean_leftovers`): a staging folder carrying this package's staging mark is removed,
   an earlier result caught between two renames is put back (or removed where its record proves
@@ -33,10 +34,12 @@ from pathlib import Path
 
 from .guard import OutputRefused
 
-__all__ = ["STAGING_MARK", "OutputBusy", "OutputClaim", "clean_leftovers", "preflight"]
+__all__ = ["CLAIM_INSIDE", "STAGING_MARK", "OutputBusy", "OutputClaim", "clean_leftovers", "preflight"]
 
 #: the file inside a staging folder that says this package made it (removed before publishing)
 STAGING_MARK = ".tactile-force-staging"
+#: the claim file inside a folder a verb adds to (``record``, ``compress``), while it runs
+CLAIM_INSIDE = ".tactile-force-claim"
 
 
 class OutputBusy(OutputRefused):
@@ -161,13 +164,15 @@ class OutputClaim:
     """
 
     def __init__(self, dest: str | os.PathLike, verb: str, flag: str = "--out",
-                 expected_bytes: int | None = None) -> None:
+                 expected_bytes: int | None = None, inside: bool = False) -> None:
         self.dest = Path(dest)
         self.verb = verb
         self.flag = flag
         self.expected_bytes = expected_bytes
+        self.inside = inside
         self.id = secrets.token_hex(6)
-        self.lock = _lock_path(Path(os.path.abspath(self.dest)))
+        self.lock = (Path(os.path.abspath(self.dest)) / CLAIM_INSIDE if inside
+                     else _lock_path(Path(os.path.abspath(self.dest))))
         self._fd: int | None = None
         self._made: list[Path] = []
 
@@ -175,7 +180,20 @@ class OutputClaim:
         return OutputRefused(f"{self.flag} {self.dest}: cannot {what} ({exc.strerror or exc})")
 
     def acquire(self) -> OutputClaim:
-        """Judge the output, take the lock, clean leftovers; OutputRefused / OutputBusy otherwise."""
+        """Judge the output, take the lock, clean leftovers; OutputRefused / OutputBusy otherwise.
+        ``inside``: a folder a verb adds to (``record``, ``compress``): only the lock, kept in it."""
+        if self.inside:
+            self._made = [] if self.dest.is_dir() else [self.dest]  # an empty folder it made goes on release
+            try:
+                self.dest.mkdir(parents=True, exist_ok=True)
+            except OSError as exc:
+                raise self._refuse("create it", exc) from None
+            try:
+                self._lock()
+            except BaseException:
+                self._undo_parents()
+                raise
+            return self
         preflight(self.dest, self.flag, self.expected_bytes)
         parent = self.lock.parent
         missing = [q for q in (parent, *parent.parents) if not os.path.lexists(q)]
@@ -247,7 +265,7 @@ class OutputClaim:
         finally:
             os.close(self._fd)
             self._fd = None
-        if not published:
+        if not published or self.inside:
             self._undo_parents()
 
     def __enter__(self) -> OutputClaim:

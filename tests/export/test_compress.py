@@ -189,3 +189,15 @@ def test_threads_is_validated_before_any_work(tmp_path, capsys):
     with pytest.raises(OptionsError, match="threads"):
         compress_model(CompressOptions(teacher=tmp_path / "t.pth", frames=[tmp_path], out=out, threads=-1))
     assert not out.exists()
+
+
+def test_a_second_compress_into_the_same_out_is_refused_while_one_runs(tmp_path, capsys):
+    from tactile_force.edge.files.claim import OutputClaim
+
+    out = tmp_path / "c"
+    argv = ["compress", str(tmp_path / "t.pth"), "--frames", str(tmp_path / "none"), "--out", str(out)]
+    with OutputClaim(out, "compress", inside=True):  # a compress at work there
+        assert cli_main(argv) == 2
+        assert f"--out {out}: 'tactile-force compress' (pid" in capsys.readouterr().err
+    assert cli_main(argv) == 2 and "not found" in capsys.readouterr().err  # refused for its own reason
+    assert not out.exists()  # a refused run leaves no empty --out behind

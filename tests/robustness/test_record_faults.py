@@ -85,3 +85,17 @@ def test_scale_readings_outside_the_label_range_are_skipped_not_written(tmp_path
     res = record(ThreeFrames(), FixedScale(250.0), RecordOptions(out=tmp_path / "ds", handle_signals=False))
     assert res.written == [] and res.skipped == {"force outside the label range": 3}
     assert res.stopped_by == "source ended"
+
+
+def test_a_second_recorder_or_a_repair_is_refused_while_one_records(tmp_path):
+    """A second writer would 'repair' away the first one's sample in flight."""
+    from tactile_force.edge.files.claim import OutputBusy, OutputClaim
+
+    out = make_dataset(tmp_path / "ds", n=2)
+    with OutputClaim(out, "record", inside=True):  # a recorder at work there
+        with pytest.raises(OutputBusy, match="is writing it now"):
+            record(NoiseFrames(), FixedScale(2.0), RecordOptions(out=out, max_samples=1, handle_signals=False))
+        rc, _, stderr = run_cli(["record", "--repair", str(out)])
+        assert rc == 2 and f"--repair {out}" in stderr and "is writing it now" in stderr
+    res = record(NoiseFrames(), FixedScale(2.0), RecordOptions(out=out, max_samples=1, handle_signals=False))
+    assert res.written == [2] and not (out / ".tactile-force-claim").exists()
