@@ -91,7 +91,7 @@ def test_an_interrupted_synth_leaves_no_half_dataset(tmp_path, sig):
     deadline = time.monotonic() + 120
     staging: list[Path] = []
     while time.monotonic() < deadline and not staging:  # rendering has started
-        staging = [p for p in tmp_path.iterdir() if p.name.startswith(".d.")]
+        staging = [p for p in tmp_path.iterdir() if p.name.startswith(".d.") and p.name.endswith(".partial")]
         time.sleep(0.05)
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and not list((staging[0] / "images").glob("*.png")):
