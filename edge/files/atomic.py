@@ -27,8 +27,10 @@ import ctypes
 import errno
 import os
 import shutil
+import signal
 import sys
 import tempfile
+import threading
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
@@ -143,12 +145,56 @@ def publish_folder(tmp: Path, dest: Path, verb: str, *, force: bool = False, kno
     -------
     list[str] : what was kept beside ``dest`` (empty normally).
     """
+    fsync_dir(tmp)
+    kept: list[str] = []
+    with _signals_held():  # a Ctrl-C in here would leave the earlier folder half-removed at a hidden path
+        old, v = _swap_in(tmp, dest, verb, force, known, flag)
+        if old is None:
+            return kept
+        if remove_proved(old, v):
+            keep = dest.with_name(f"{dest.name}.kept-{os.urandom(3).hex()}")
+            os.rename(old, keep)
+            kept.append(str(keep))
+            print(f"tactile-force {verb}: {flag} {dest}: something appeared in the earlier result while it was being "
+                  f"replaced; kept as {keep}", file=sys.stderr)
+        fsync_dir(dest.parent)
+    return kept
+
+
+@contextlib.contextmanager
+def _signals_held() -> Iterator[None]:
+    """SIGINT and SIGTERM wait until the block ends (main thread; elsewhere nothing changes),
+    then reach their handler as they would have."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    got: list[int] = []
+    held = (int(signal.SIGINT), int(signal.SIGTERM))
+    old: dict[int, object] = {sig: signal.signal(sig, lambda signum, frame: got.append(signum)) for sig in held}
+    try:
+        yield
+    finally:
+        for sig, handler in old.items():
+            signal.signal(sig, handler)  # type: ignore[arg-type]
+        if got:
+            handler = old[got[0]]
+            if callable(handler):
+                handler(got[0], None)
+            elif handler == signal.SIG_DFL:
+                if got[0] == signal.SIGINT:
+                    raise KeyboardInterrupt
+                os.kill(os.getpid(), got[0])
+
+
+def _swap_in(tmp: Path, dest: Path, verb: str, force: bool, known: Verification | None,
+             flag: str) -> tuple[Path | None, Verification]:
+    """Put ``tmp`` in place as ``dest``; (where the earlier folder now is, its verification),
+    (None, ...) when ``dest`` was new. Undone on refusal (OutputRefused) or any error."""
     from .guard import OutputRefused
 
-    fsync_dir(tmp)
     if not os.path.lexists(dest) and rename_noreplace(tmp, dest):
         fsync_dir(dest.parent)
-        return []
+        return None, Verification()
     if dest.is_symlink() or not dest.is_dir():
         raise OutputRefused(f"{flag} {dest}: {'a symbolic link' if dest.is_symlink() else 'a file'} appeared there "
                             f"while 'tactile-force {verb}' ran; nothing was replaced and the new result was discarded")
@@ -156,17 +202,24 @@ def publish_folder(tmp: Path, dest: Path, verb: str, *, force: bool = False, kno
     old = tmp if swapped else dest.with_name(f".{dest.name}.{os.urandom(4).hex()}.old")
     if not swapped:
         os.rename(dest, old)
-    v = verify(old, verb, known)
-    if not (v.empty or (force and v.proved and v.has_record)):
+
+    def undo() -> None:
         if swapped:
             exchange(tmp, dest)
         else:
             os.rename(old, dest)
+
+    try:
+        v = verify(old, verb, known)
+    except BaseException:
+        undo()
+        raise
+    if not (v.empty or (force and v.proved and v.has_record)):
+        undo()
         if force:
-            why = v.describe()
-            raise OutputRefused(f"{flag} {dest}: holds what 'tactile-force {verb}' cannot prove it wrote: {why} "
-                                "(it appeared or changed while the verb ran); nothing was replaced or deleted and the "
-                                "new result was discarded")
+            raise OutputRefused(f"{flag} {dest}: holds what 'tactile-force {verb}' cannot prove it wrote: "
+                                f"{v.describe()} (it appeared or changed while the verb ran); nothing was replaced or "
+                                "deleted and the new result was discarded")
         raise OutputRefused(f"{flag} {dest}: appeared while 'tactile-force {verb}' ran and is not empty; nothing was "
                             "replaced and the new result was discarded (pass --force to replace an earlier result of "
                             "the same command)")
@@ -175,15 +228,7 @@ def publish_folder(tmp: Path, dest: Path, verb: str, *, force: bool = False, kno
         os.rename(old, keep)
         raise OutputRefused(f"{flag} {dest}: appeared again while its earlier content was moved aside (kept as "
                             f"{keep}); nothing was deleted and the new result was discarded")
-    kept: list[str] = []
-    if remove_proved(old, v):
-        keep = dest.with_name(f"{dest.name}.kept-{os.urandom(3).hex()}")
-        os.rename(old, keep)
-        kept.append(str(keep))
-        print(f"tactile-force {verb}: {flag} {dest}: something appeared in the earlier result while it was being "
-              f"replaced; kept as {keep}", file=sys.stderr)
-    fsync_dir(dest.parent)
-    return kept
+    return old, v
 
 
 def _refuse_unproved(dest: Path, verb: str, flag: str, v: Verification) -> None:
@@ -230,6 +275,7 @@ def staged_folder(dest: str | os.PathLike, verb: str, *, force: bool = False,
     claim = OutputClaim(dest, verb, flag, expected_bytes).acquire()
     published = False
     tmp: Path | None = None
+    staging_ino = -1
     try:
         check_output(dest, inputs, force=force, kind=OutputKind.FOLDER, flag=flag)
         known: Verification | None = None
@@ -240,6 +286,7 @@ def staged_folder(dest: str | os.PathLike, verb: str, *, force: bool = False,
         try:
             tmp = Path(tempfile.mkdtemp(prefix=f".{dest.name}.{claim.id}.", suffix=".partial", dir=claim.lock.parent))
             (tmp / STAGING_MARK).write_text(claim.id + "\n")
+            staging_ino = os.stat(tmp).st_ino
             umask = os.umask(0)
             os.umask(umask)
             os.chmod(tmp, 0o777 & ~umask)  # mkdtemp makes it 0700; a result is readable like any folder
@@ -258,9 +305,16 @@ def staged_folder(dest: str | os.PathLike, verb: str, *, force: bool = False,
                 raise
             raise named from exc
     finally:
-        if tmp is not None and not published:
+        if tmp is not None and not published and _is(tmp, staging_ino):  # never an earlier result swapped there
             shutil.rmtree(tmp, ignore_errors=True)
         claim.release(published)
+
+
+def _is(path: Path, ino: int) -> bool:
+    try:
+        return os.lstat(path).st_ino == ino
+    except OSError:
+        return False
 
 
 @contextlib.contextmanager

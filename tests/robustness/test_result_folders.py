@@ -391,3 +391,38 @@ def test_an_os_error_without_a_path_names_the_output(tmp_path, monkeypatch, caps
     err = capsys.readouterr().err
     assert f"error: {out}: No space left on device" in err, err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_an_error_while_the_earlier_result_is_checked_at_publish_puts_it_back(tmp_path, monkeypatch):
+    out = tmp_path / "r"
+    with staged_folder(out, "bench") as tmp:
+        (tmp / "a.txt").write_text("1")
+    real = atomic.verify
+
+    def failing(folder, verb, known=None):
+        if Path(folder) != out:  # the earlier folder, swapped to the hidden path
+            raise OSError(errno.EIO, "Input/output error")
+        return real(folder, verb, known)
+
+    monkeypatch.setattr(atomic, "verify", failing)
+    with pytest.raises(OSError), staged_folder(out, "bench", force=True) as tmp:
+        (tmp / "a.txt").write_text("2")
+    assert (out / "a.txt").read_text() == "1" and sorted(p.name for p in tmp_path.iterdir()) == ["r"]
+
+
+def test_ctrl_c_while_publishing_waits_until_the_swap_is_whole(tmp_path, monkeypatch):
+    out = tmp_path / "r"
+    with staged_folder(out, "bench") as tmp:
+        (tmp / "a.txt").write_text("1")
+    real = atomic.verify
+
+    def interrupted(folder, verb, known=None):
+        if Path(folder) != out:  # the earlier folder, swapped to the hidden path
+            os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C in the middle of the swap
+        return real(folder, verb, known)
+
+    monkeypatch.setattr(atomic, "verify", interrupted)
+    with pytest.raises(KeyboardInterrupt), staged_folder(out, "bench", force=True) as tmp:
+        (tmp / "a.txt").write_text("2")
+    assert (out / "a.txt").read_text() == "2"  # delivered once the new result was whole in place
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r"]  # the earlier one removed, nothing hidden
