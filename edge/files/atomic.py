@@ -285,8 +285,8 @@ def staged_folder(dest: str | os.PathLike, verb: str, *, force: bool = False,
                 _refuse_unproved(dest, verb, flag, known)
         try:
             tmp = Path(tempfile.mkdtemp(prefix=f".{dest.name}.{claim.id}.", suffix=".partial", dir=claim.lock.parent))
-            (tmp / STAGING_MARK).write_text(claim.id + "\n")
             staging_ino = os.stat(tmp).st_ino
+            (tmp / STAGING_MARK).write_text(claim.id + "\n")
             umask = os.umask(0)
             os.umask(umask)
             os.chmod(tmp, 0o777 & ~umask)  # mkdtemp makes it 0700; a result is readable like any folder
