@@ -382,11 +382,16 @@ def _claim_cases(inputs: Inputs, spec: Verb) -> list[Case]:
         proc = subprocess.Popen([sys.executable, str(TF_CLI), *spec.long_argv(inputs, out)],
                                 stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
         err = _Stderr(proc)
+        claim = out.with_name(f".{out.name}.tactile-force-claim")  # at work and holding --out
+
+        def working() -> bool:
+            return _AT_WORK[name](out, err.lines, False) and claim.exists()
+
         try:
             end = time.monotonic() + START_S
-            while time.monotonic() < end and proc.poll() is None and not _AT_WORK[name](out, err.lines, False):
+            while time.monotonic() < end and proc.poll() is None and not working():
                 time.sleep(0.05)
-            if proc.poll() is not None or not _AT_WORK[name](out, err.lines, False):
+            if proc.poll() is not None or not working():
                 return Verdict(Outcome.HANG, f"the first run was not at work within {START_S:g} s: {err.text()[-200:]}")
             v = cli_verdict(spec.argv(inputs, out), {2}, True, ("--out", "writing it now"))
         finally:
