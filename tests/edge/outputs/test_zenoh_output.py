@@ -318,6 +318,25 @@ def test_eight_sensors_at_60_fps_for_10_s_arrive_in_order_none_lost(router, sdk)
     assert len(gids) == 3  # one GID per publisher
 
 
+def test_peer_mode_reaches_a_subscriber_through_the_router(router):
+    endpoint, _ = router
+    store = get_typestore(Stores.ROS2_JAZZY)
+    seen: list = []
+    tap = open_client(endpoint)
+    tap.declare_subscriber("0/tactile/force/geometry_msgs::msg::dds_::WrenchStamped_/*",
+                           lambda s: seen.append(store.deserialize_cdr(s.payload.to_bytes(), WRENCH_STAMPED)))
+    try:
+        with ZenohPublisher(endpoint=endpoint, mode="peer", domain_id=0, stamp_clock=StampClock(0)) as pub:
+            i = 0
+            while not seen and i < 2000:  # until the subscription has reached the publisher
+                pub.write(_reading(3, i, 10**12))
+                i += 1
+                time.sleep(0.01)
+        assert seen and seen[0].header.frame_id == "s3"
+    finally:
+        tap.close()
+
+
 # -- faults --------------------------------------------------------------------------------------
 def test_no_router_names_the_endpoint(tmp_path, monkeypatch, capsys):
     endpoint = f"tcp/127.0.0.1:{free_port()}"
