@@ -346,6 +346,21 @@ def test_no_router_names_the_endpoint(tmp_path, monkeypatch, capsys):
     rc = cli_main(["run", "--source", "virtual", "--zenoh", endpoint, "--out", "r.csv", "--max-frames", "3"])
     err = capsys.readouterr().err
     assert rc == 2 and endpoint in err and "Traceback" not in err
+    # with --zenoh-retry the run goes on without a router: the CSV gets every reading
+    rc = cli_main(["run", "--source", "virtual", "--zenoh", endpoint, "--zenoh-retry", "--out", "kept.csv",
+                   "--max-frames", "12"])
+    assert rc == 0, capsys.readouterr().err
+    assert [int(r["frame_index"]) for r in csv.DictReader((tmp_path / "kept.csv").open())] == list(range(12))
+    rc = cli_main(["run", "--source", "virtual", "--zenoh-namespace", "/x", "--out", "q.csv"])
+    assert rc == 2 and "--zenoh-namespace: only with --zenoh" in capsys.readouterr().err
+
+
+def test_missing_zenoh_names_the_extra(monkeypatch):
+    from tactile_force.edge.errors import MissingExtraError
+
+    monkeypatch.setitem(sys.modules, "zenoh", None)
+    with pytest.raises(MissingExtraError, match=r"tactile-force\[zenoh\]"):
+        ZenohPublisher(endpoint="tcp/127.0.0.1:1")
 
 
 def test_retry_keeps_running_until_a_router_comes(tmp_path):
