@@ -469,6 +469,10 @@ def test_fleet_through_a_router_that_restarts_then_ctrl_c(tmp_path):
         back = time.monotonic()
         resumed = wait_for(lambda: all(arrived(h, back) > 0 for h in hands), 2.0)
         assert resumed, f"not published within 2 s of the router's return: { {h: arrived(h, back) for h in hands} }"
+        with lock:
+            first = {h: min(t for t, k, _ in samples if t > back and k.startswith(f"{domain}/{h}/")) - back
+                     for h in hands}
+        print("\npublished again after the router's return (s):", {h: round(v, 3) for h, v in first.items()})
         assert all(r.poll() is None for r in runs.values())
         time.sleep(0.5)
         for r in runs.values():
