@@ -318,6 +318,26 @@ def test_eight_sensors_at_60_fps_for_10_s_arrive_in_order_none_lost(router, sdk)
     assert len(gids) == 3  # one GID per publisher
 
 
+def test_reliable_qos_is_declared_in_the_publishers_tokens(router):
+    endpoint, _ = router
+    lv = open_client(endpoint)
+    try:
+        with ZenohPublisher(endpoint=endpoint, qos="reliable", interval=False, diagnostics=False, domain_id=2):
+            keys: list[str] = []
+
+            def declared() -> bool:
+                keys[:] = [str(r.ok.key_expr) for r in lv.liveliness().get("@ros2_lv/2/*/*/*/MP/**", timeout=1.0)
+                           if r.ok]
+                return bool(keys)
+
+            assert wait_for(declared, 10)
+        assert len(keys) == 1  # the force topic only
+        qos = SdkQos.decode(keys[0].rsplit("/", 1)[1])
+        assert (qos.reliability, qos.history_depth) == (QosReliability.RELIABLE, 10)
+    finally:
+        lv.close()
+
+
 def test_peer_mode_reaches_a_subscriber_through_the_router(router):
     endpoint, _ = router
     store = get_typestore(Stores.ROS2_JAZZY)
