@@ -42,6 +42,18 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument("--mcap-frames", action="store_true",
                    help="with --out FILE.mcap: also log each frame (JPEG) and its contact mask (PNG) there")
     p.add_argument("--ros2", metavar="TOPIC", help="with --source: publish readings on this ROS 2 topic")
+    p.add_argument("--zenoh", nargs="?", const="tcp/localhost:7447", metavar="ENDPOINT",
+                   help="with --source: publish readings to ROS 2 nodes on rmw_zenoh through the Zenoh router at "
+                        "ENDPOINT (default tcp/localhost:7447; see docs/ros2.md)")
+    p.add_argument("--zenoh-topic", metavar="TOPIC",
+                   help="with --zenoh: the force topic (default tactile/force, under --zenoh-namespace)")
+    p.add_argument("--zenoh-namespace", metavar="NS", help="with --zenoh: the node's namespace (default /)")
+    p.add_argument("--zenoh-node", metavar="NAME", help="with --zenoh: the node's name (default tactile_force)")
+    p.add_argument("--zenoh-mode", choices=("client", "peer"),
+                   help="with --zenoh: client (default: all through the router) or peer")
+    p.add_argument("--zenoh-retry", action="store_true",
+                   help="with --zenoh: if no router answers, keep running (the other outputs get every reading) "
+                        "and keep trying to reach it")
     p.add_argument("--save-scene", metavar="FILE", help="write the scene that runs as a TOML file")
     p.add_argument("--max-frames", type=positive_int, default=None,
                    help="stop after this many readings (>= 1; default: scene / until sources end)")
@@ -137,9 +149,11 @@ def _run_scene(args: argparse.Namespace):
     from ..scene import load_scene, scene_from_flags
     from ..scene.preflight import run_refusals
 
-    given = [f"--{k.replace('_', '-')}" for k in ("bundle", "background", "fps", "ros2", "depth_mapping")
+    zenoh_flags = ("zenoh_topic", "zenoh_namespace", "zenoh_node", "zenoh_mode")
+    given = [f"--{k.replace('_', '-')}" for k in ("bundle", "background", "fps", "ros2", "depth_mapping", "zenoh",
+                                                  *zenoh_flags)
              if getattr(args, k, None) is not None] + (["--out"] if args.out else []) \
-        + (["--mcap-frames"] if getattr(args, "mcap_frames", False) else [])
+        + [f"--{k.replace('_', '-')}" for k in ("mcap_frames", "zenoh_retry") if getattr(args, k, False)]
     if args.scene and args.source:
         raise SceneError("give --scene FILE or --source SRC, not both")
     if args.scene:
@@ -150,6 +164,12 @@ def _run_scene(args: argparse.Namespace):
         return scene
     if not args.source:
         raise SceneError("give --scene FILE, or --source SRC [--bundle B] (see tactile-force run --help)")
+    zenoh = None
+    if getattr(args, "zenoh", None) is not None:
+        zenoh = {"endpoint": args.zenoh, "topic": args.zenoh_topic, "namespace": args.zenoh_namespace,
+                 "node": args.zenoh_node, "mode": args.zenoh_mode, "retry": args.zenoh_retry or None}
+    elif without := [f for f in given if f.startswith("--zenoh-")]:
+        raise SceneError(f"{', '.join(without)}: only with --zenoh [ENDPOINT]")
     from ..files.guard import OutputKind, check_input, check_output
 
     for flag in ("source", "bundle", "background", "depth_mapping"):
@@ -163,7 +183,7 @@ def _run_scene(args: argparse.Namespace):
     scene = scene_from_flags(args.source, bundle=args.bundle or "default", background=args.background,
                              outputs=args.out, ros2=args.ros2, name=args.name, fps=args.fps,
                              mcap_frames=getattr(args, "mcap_frames", False),
-                             depth_mapping=getattr(args, "depth_mapping", None))
+                             depth_mapping=getattr(args, "depth_mapping", None), zenoh=zenoh)
     from ..scene.kinds import kind_of
 
     if kind_of(scene.sensors[0]).live:

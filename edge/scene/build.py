@@ -44,7 +44,7 @@ def load_model(scene: Scene) -> tuple[Any, str, list[str]]:
 
 
 def open_outputs(scene: Scene, p99_ms=None) -> list:
-    """One writer per [[output]]; MCAP and ROS 2 writers are imported only when used."""
+    """One writer per [[output]]; MCAP, ROS 2 and Zenoh writers are imported only when used."""
     from ..outputs import CsvWriter, JsonlWriter, StdoutWriter
 
     sinks: list = []
@@ -64,6 +64,12 @@ def open_outputs(scene: Scene, p99_ms=None) -> list:
 
                 assert o.topic is not None  # parse_scene requires it
                 sinks.append(Ros2Publisher(o.topic))
+            elif o.kind == "zenoh":
+                from ..outputs.zenoh_topic import ZenohPublisher  # the 'zenoh' extra, imported only now
+
+                assert o.topic is not None  # OutputSpec.check resolves it
+                sinks.append(ZenohPublisher(o.topic, namespace=o.namespace, node=o.node, endpoint=o.endpoint,
+                                            mode=o.mode, retry=o.retry))
             else:
                 sinks.append(StdoutWriter(live=o.live, p99_ms=p99_ms, every=4))
     except BaseException:

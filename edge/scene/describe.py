@@ -62,7 +62,10 @@ def scene_to_toml(scene: Scene) -> str:
         for k in ("path", "topic"):
             if getattr(o, k) is not None:
                 lines.append(f"{k} = {_toml_value(getattr(o, k))}")
-        for k in ("live", "fsync", "frames", "mask"):
+        if o.kind == "zenoh":
+            lines += [f"{k} = {_toml_value(getattr(o, k))}" for k in ("endpoint", "mode", "namespace", "node")
+                      if getattr(o, k) is not None]
+        for k in ("live", "fsync", "frames", "mask", "retry"):
             if getattr(o, k):
                 lines.append(f"{k} = true")
     return "\n".join(lines) + "\n"
@@ -106,6 +109,11 @@ def bundle_problems(scene: Scene) -> list[str]:
 
 def _output_line(o: OutputSpec) -> str:
     target = f" {o.path}" if o.path else (f" topic {o.topic}" if o.topic else "")
+    if o.kind == "zenoh":
+        from ..outputs.zenoh_topic import DEFAULT_ENDPOINT
+
+        target += (f" node {o.namespace.rstrip('/')}/{o.node} ({o.mode} to {o.endpoint or DEFAULT_ENDPOINT}"
+                   + (", retried" if o.retry else "") + ")")
     images = " + ".join(w for w, on in (("frames", o.frames), ("contact masks", o.mask)) if on)
     return (f"  output       {o.kind}{target}{' (live status line)' if o.live else ''}"
             + (f" (with {images})" if images else ""))

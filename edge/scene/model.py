@@ -9,7 +9,7 @@ into a :class:`Scene`. A sensor table's keys depend on its source kind (:mod:`.k
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any, Literal
 
@@ -18,10 +18,13 @@ from ..gate.options import GateOptions
 from ..typed_json import check
 
 Backend = Literal["cpu", "oak"]
-OutputKind = Literal["stdout", "csv", "jsonl", "mcap", "ros2"]
+OutputKind = Literal["stdout", "csv", "jsonl", "mcap", "ros2", "zenoh"]
+ZenohMode = Literal["client", "peer"]
 DepthMode = Literal["exact", "paper"]
 BACKENDS: tuple[str, ...] = ("cpu", "oak")
-OUTPUT_KINDS: tuple[str, ...] = ("stdout", "csv", "jsonl", "mcap", "ros2")
+OUTPUT_KINDS: tuple[str, ...] = ("stdout", "csv", "jsonl", "mcap", "ros2", "zenoh")
+#: The keys only a ``zenoh`` output takes.
+ZENOH_KEYS = ("endpoint", "mode", "namespace", "node", "retry")
 #: Output kinds that write a file (need ``path``).
 FILE_OUTPUTS = ("csv", "jsonl", "mcap")
 DEPTH_MODES: tuple[str, ...] = ("exact", "paper")
@@ -81,8 +84,11 @@ def ros2_topic_ok(topic: str) -> bool:
 @dataclass
 class OutputSpec:
     """One [[output]] table. path: absolute (file outputs), relative to the working
-    directory in the file; topic: ROS 2 topic (ros2); frames / mask: also log each gated
-    frame (JPEG) / its contact mask (PNG) (mcap only)."""
+    directory in the file; topic: ROS 2 topic (ros2; zenoh: default 'tactile/force', a
+    relative name resolved under ``namespace``); frames / mask: also log each gated
+    frame (JPEG) / its contact mask (PNG) (mcap only); endpoint, mode, namespace, node,
+    retry: the Zenoh router's locator (default tcp/localhost:7447), 'client' or 'peer', the
+    node's namespace and name, keep running while the router is tried again (zenoh only)."""
 
     kind: OutputKind
     path: Path | None = field(default=None, metadata=check(
@@ -93,6 +99,14 @@ class OutputSpec:
         test=ros2_topic_ok, expected="a ROS 2 topic name such as '/tactile/force'"))
     frames: bool = False
     mask: bool = False
+    endpoint: str | None = field(default=None, metadata=check(
+        test=lambda e: bool(e) and " " not in e, expected="a Zenoh locator such as 'tcp/localhost:7447'"))
+    mode: ZenohMode = "client"
+    namespace: str = field(default="/", metadata=check(
+        test=lambda n: n.startswith("/") and " " not in n, expected="'/' or an absolute name such as '/left_hand'"))
+    node: str = field(default="tactile_force", metadata=check(
+        test=lambda n: bool(n) and " " not in n, expected="a ROS 2 node name such as 'tactile_force'"))
+    retry: bool = False
 
     def check(self) -> None:
         """Rules across keys, and the topic made absolute (the typed reader calls it after
@@ -103,6 +117,23 @@ class OutputSpec:
             raise ValueError(f"output '{self.kind}' writes no file; remove 'path'")
         if self.kind == "ros2" and self.topic is None:
             raise ValueError("output 'ros2' needs 'topic' (e.g. '/tactile/force')")
+        if self.kind == "zenoh":
+            from ..outputs.zenoh_topic import (  # no Zenoh import there until a session opens
+                DEFAULT_TOPIC,
+                check_endpoint,
+                check_node_name,
+                resolve_topic,
+            )
+
+            self.topic = resolve_topic(DEFAULT_TOPIC if self.topic is None else self.topic, self.namespace)
+            check_node_name(self.node)
+            if self.endpoint is not None:
+                self.endpoint = check_endpoint(self.endpoint)
+        else:
+            defaults = {f.name: f.default for f in fields(OutputSpec)}
+            given = [k for k in ZENOH_KEYS if getattr(self, k) != defaults[k]]
+            if given:
+                raise ValueError(f"'{given[0]}' is for kind = \"zenoh\" only")
         if self.topic is not None:
             from ..outputs.ros2_names import ros_topic  # no DDS dependency
 

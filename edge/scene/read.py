@@ -294,11 +294,12 @@ def output_table(out: str) -> dict[str, Any]:
 def scene_from_flags(source: str, bundle: str = "default", background: str | None = None,
                      outputs: list[str] | None = None, ros2: str | None = None, name: str = "sensor",
                      fps: float | None = None, live_status: bool = False, mcap_frames: bool = False,
-                     depth_mapping: str | None = None) -> Scene:
+                     depth_mapping: str | None = None, zenoh: dict[str, Any] | None = None) -> Scene:
     """The Scene a TOML file with these settings would give, read by the same typed reader
     (errors name ``command line`` and the key). mcap_frames: the .mcap outputs also log each
     frame and its contact mask; depth_mapping: the [depth] mapping (relative to the working
-    directory, or ``package:FILE``)."""
+    directory, or ``package:FILE``); zenoh: the keys of a ``zenoh`` output (endpoint, topic,
+    mode, namespace, node, retry; None: no Zenoh output)."""
     sensor = {"name": name, **source_table(source)}
     if background is not None:
         sensor["background"] = str(_expand(background, "--background").absolute())
@@ -313,6 +314,8 @@ def scene_from_flags(source: str, bundle: str = "default", background: str | Non
                 o.update(frames=True, mask=True)
     if ros2 is not None:
         outs.append({"kind": "ros2", "topic": ros2})
+    if zenoh is not None:
+        outs.append({"kind": "zenoh", **{k: v for k, v in zenoh.items() if v is not None}})
     outs.insert(0, {"kind": "stdout", "live": live_status})
     data: dict[str, Any] = {
         "runtime": {"bundle": bundle if bundle == "default" else str(_expand(bundle, "--bundle").absolute())},
