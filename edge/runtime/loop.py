@@ -33,7 +33,9 @@ are read side by side: each sensor's ``read()`` runs in its own grabber thread, 
 at most one frame read ahead, so no sensor waits for another's camera; a step serves every
 sensor whose frame is there, those in contact in one batched predict (a slow or dead sensor
 holds up no other). Each frame still gets its own gate pass; each reading keeps its own
-sensor's name, frame index and time stamp.
+sensor's name, frame index and time stamp. Frames ready together are gated on two threads
+(``workers``, ``RuntimeOptions.workers``), which is safe because no source, gate or depth
+stage serves two sensors (``ownership``, checked at construction).
 
 Sinks that log frames or contact masks (the MCAP writer with ``frames`` / ``mask``) get each
 gated frame and the gate's full-resolution mask through ``write_frame`` (:func:`frame_sinks`);
@@ -134,13 +136,15 @@ class ForceRuntime:
     """Serve force readings for 1 to :data:`~tactile_force.edge.frames.MAX_BATCH` (16) sensors
     from one model.
 
-    sensors: 1 to 16 :class:`Sensor` (names unique; e.g. the fingertips of a hand). model: a
+    sensors: 1 to 16 :class:`Sensor` (names unique, each with its own source, gate and
+    depth stage: one part given to two sensors raises :class:`OptionsError` naming both;
+    e.g. the fingertips of a hand). model: a
     :class:`~.options.ForceModel` (OnnxForceModel, the OAK backend; a model lacking one of
     its members is refused with :class:`~tactile_force.edge.errors.ArgumentTypeError` naming
     it); a closed model is refused (:class:`ModelClosedError`). One model may be shared by
     several runtimes and threads (OnnxForceModel serialises its calls). depth_factory:
     builds one depth stage per sensor for depth models (default :func:`build_depth_stage`
-    from the bundle's manifest). clock: monotonic ns; give sources the same clock.
+    from the bundle's manifest; a new stage per call). clock: monotonic ns; give sources the same clock.
 
     owns_model: whether :meth:`close` closes the model. True (default, what callers that
     load a model for this runtime want): the model is closed, but only once the last runtime
