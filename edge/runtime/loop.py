@@ -51,6 +51,7 @@ from __future__ import annotations
 import logging
 import math
 import time
+import weakref
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -205,6 +206,8 @@ class ForceRuntime:
         #: threads that run a step's per-sensor work when several frames are ready (workers.py)
         self.workers = worker_count(self.options.workers, len(sensors), clock is time.monotonic_ns)
         self._workers = _Workers(self.workers, "-".join(names)[:40]) if self.workers > 1 else None
+        if self._workers is not None:  # a runtime dropped without close() leaves no worker behind
+            weakref.finalize(self, self._workers.stop, 0.0)
         #: (frames, masks) to keep for frame sinks; (False, False) = none kept (zero cost).
         self.tap: tuple[bool, bool] = (False, False)
         #: (sensor, timestamp ns, HxWx3 uint8 BGR copy or None, HxW uint8 0/255 mask copy or

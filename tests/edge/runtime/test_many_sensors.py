@@ -189,7 +189,8 @@ def test_frames_ready_together_are_gated_on_two_threads_and_batched_once(model, 
     by = _by_sensor(readings)
     for k, name in enumerate(_names()):
         assert [(r.frame_index, r.timestamp_ns) for r in by[name]] == [(i, _stamp(k, i)) for i in range(12)], name
-    assert not [t for t in threading.enumerate() if t.name.startswith("work-")]  # close() ended the workers
+    mine = f"work-{'-'.join(_names())[:40]}-"
+    assert not [t for t in threading.enumerate() if t.name.startswith(mine)]  # close() ended the workers
 
 
 def test_a_dead_sensor_ends_alone(model, hand_frames):

@@ -44,7 +44,7 @@ def test_one_source_under_two_sensors_is_refused_naming_both(model):
 
 def test_a_shallow_copy_of_a_gate_shares_its_state_and_is_refused(model):
     gate = ContactGate()
-    with pytest.raises(OptionsError, match=r"sensors 'a' and 'b' share one gate's _\w+ \(\w+, inside its ContactGate\)"):
+    with pytest.raises(OptionsError, match=r"'a' and 'b' share one gate's _\w+ \(\w+, inside its ContactGate\)"):
         ForceRuntime([Sensor("a", ListSource([]), gate), Sensor("b", ListSource([]), copy.copy(gate))], model,
                      owns_model=False)
 

@@ -5,6 +5,7 @@ where it enters. Real threads; no timing assertions."""
 
 from __future__ import annotations
 
+import gc
 import threading
 
 import pytest
@@ -79,4 +80,15 @@ def test_one_sensor_keeps_the_single_thread_path_and_an_injected_clock_runs_one_
     fake = ForceRuntime(sensors, model, clock=FakeClock(1000), owns_model=False)
     assert fake.workers == 1
     fake.close()
+    many = ForceRuntime([Sensor(f"g{k}", ListSource([]), ContactGate()) for k in range(2)], model,
+                        RuntimeOptions(workers=2), owns_model=False)
+    helper = many._workers
+    assert helper is not None
+    helper.run(lambda _: None, [0, 1])  # its worker thread has started
+    assert [t for t in threading.enumerate() if t.name == "work-g0-g1-1"]
+    del many  # dropped without close(): its worker ends with it
+    gc.collect()
+    for t in [t for t in threading.enumerate() if t.name == "work-g0-g1-1"]:
+        t.join(20.0)
+    assert not [t for t in threading.enumerate() if t.name == "work-g0-g1-1"]
     model.close()
