@@ -46,6 +46,7 @@ class Phase:
     readings: int
     prewarms: int = 0
     overran: int = 0
+    workers: int = 1  # threads that ran a step's per-sensor work (RuntimeOptions.workers)
 
     @property
     def cpu_share(self) -> float:
@@ -77,9 +78,12 @@ def reference(bare: BareOnnxRuntime, n: int, fps: float = FPS) -> np.ndarray:
     return out
 
 
-def runtime_phase(model, pool, sensors: int, n: int, prewarm: bool, fps: float | None = FPS) -> Phase:
+def runtime_phase(model, pool, sensors: int, n: int, prewarm: bool, fps: float | None = FPS,
+                  workers: int | None = None, shifted: bool = True) -> Phase:
     """``ForceRuntime`` over ``sensors`` in-memory sensors, ``n`` frames each: at ``fps``
-    (phase-shifted by 1/(fps x sensors)) or back to back (``fps`` None)."""
+    (phase-shifted by 1/(fps x sensors); ``shifted`` False: all in phase, as synchronised
+    cameras) or back to back (``fps`` None); ``workers`` as ``RuntimeOptions.workers``
+    (None: auto, two on a host with two cores or more)."""
     from tactile_force.edge import ContactGate
     from tactile_force.edge.runtime import ForceRuntime, RuntimeOptions, Sensor
 
@@ -87,10 +91,12 @@ def runtime_phase(model, pool, sensors: int, n: int, prewarm: bool, fps: float |
     for k in range(sensors):
         gate = ContactGate()
         gate.capture_background(pool.background)
+        offset = 0.05 + (k / (fps * sensors) if shifted and fps else 0.0)
         src = (MemorySource(pool.rgb, n + SKIP) if fps is None
-               else PacedMemorySource(pool.rgb, fps, n + SKIP, offset_s=0.05 + k / (fps * sensors), name=f"s{k}"))
+               else PacedMemorySource(pool.rgb, fps, n + SKIP, offset_s=offset, name=f"s{k}"))
         made.append(Sensor(f"s{k}", src, gate))
-    rt = ForceRuntime(made, model, RuntimeOptions(deadline_ms=1e9, prewarm=prewarm), owns_model=False)
+    rt = ForceRuntime(made, model, RuntimeOptions(deadline_ms=1e9, prewarm=prewarm, workers=workers),
+                       owns_model=False)
     rt.start(1.0)
     rows: dict[str, list[tuple[float, ...]]] = {s.name: [] for s in made}
     count = 0
@@ -107,7 +113,7 @@ def runtime_phase(model, pool, sensors: int, n: int, prewarm: bool, fps: float |
     stages = {"source": a[:, 0], "gate": a[:, 1], "inference": a[:, 2], "total": a[:, 3],
               "glue": a[:, 3] - a[:, 1] - a[:, 2]}
     return Phase([np.array([x[3] for x in v]) for v in rows.values()], stages, cpu_s, wall_s, count,
-                 rt.stats.prewarms, rt.stats.prewarm_overran)
+                 rt.stats.prewarms, rt.stats.prewarm_overran, rt.workers)
 
 
 @dataclass
@@ -233,13 +239,16 @@ def run(args, argv) -> int:
     summary = [{"reference_ms": np.percentile(r.ref, [50, 99]).tolist(),
                 **{name: {"total_ms": [p.p(50), p.p(99), p.p(99, True)], "cpu_share": p.cpu_share,
                           "cpu_per_reading_ms": p.cpu_per_reading_ms, "prewarms": p.prewarms, "overran": p.overran,
+                          "workers": p.workers,
                           "stages_p50_ms": {k: float(np.percentile(v, 50)) for k, v in p.stages.items()}}
                    for name, p in r.phases.items()}} for r in rds]
     with staged_file(Path(args.out) / "cadence.json") as tmp:  # the measured figures, before any rendering
         tmp.write_text(json.dumps({"rounds": summary, "bench_verdicts": verdicts}, indent=1) + "\n")
     notes = (f"{rounds} rounds of {n} frames per sensor and phase at {FPS:g} fps; per cell the median over rounds "
              f"(min-max). Before: the same runtime with `RuntimeOptions(prewarm=False)`, what every earlier commit "
-             f"ran. While measuring: {state.line()}.")
+             f"ran. The {HAND}-sensor phases ran a step's per-sensor work on "
+             f"{rds[0].phases[f'{HAND} sensors, after'].workers} threads (`RuntimeOptions.workers` auto). "
+             f"While measuring: {state.line()}.")
     text = header("Latency at the sensor's cadence", command_line(argv), describe_machine(), notes)
     text += "\n## Goals\n\n" + goals_table(rds, verdicts) + "\n"
     text += "\n## Every phase\n\n" + phases_table(rds) + "\n"

@@ -8,6 +8,7 @@ enters the package.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Protocol
 
 import numpy as np
 
@@ -173,6 +174,20 @@ class SourceStats:
     frames: int = 0
     dropped: int = 0
     corrupt: int = 0
+
+
+class FrameReader(Protocol):
+    """What a runtime reads a sensor through: :meth:`read` and :meth:`close`
+    (:class:`FrameSource` is the base of every source in this package; a source of your own
+    needs these two members, checked when a ``Sensor`` is made)."""
+
+    def read(self) -> TimedFrame | None:
+        """The next frame, or None at the end of a finite stream (see :class:`FrameSource`)."""
+        ...
+
+    def close(self) -> None:
+        """Release the device or file; safe to call twice."""
+        ...
 
 
 class FrameSource:

@@ -33,7 +33,9 @@ are read side by side: each sensor's ``read()`` runs in its own grabber thread, 
 at most one frame read ahead, so no sensor waits for another's camera; a step serves every
 sensor whose frame is there, those in contact in one batched predict (a slow or dead sensor
 holds up no other). Each frame still gets its own gate pass; each reading keeps its own
-sensor's name, frame index and time stamp.
+sensor's name, frame index and time stamp. Frames ready together are gated on two threads
+(``workers``, ``RuntimeOptions.workers``), which is safe because no source, gate or depth
+stage serves two sensors (``ownership``, checked at construction).
 
 Sinks that log frames or contact masks (the MCAP writer with ``frames`` / ``mask``) get each
 gated frame and the gate's full-resolution mask through ``write_frame`` (:func:`frame_sinks`);
@@ -49,6 +51,7 @@ from __future__ import annotations
 import logging
 import math
 import time
+import weakref
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -57,7 +60,7 @@ import numpy as np
 
 from ..bundle.interval import ForceInterval
 from ..checks import expect
-from ..errors import ModelClosedError, OptionsError
+from ..errors import ModelClosedError, OptionsError, SourceError
 from ..frames import FRAME_SHAPE, TimedFrame
 from ..gate.contact_gate import GateResult
 from ..reading import Flags, ForceReading, StageLatency
@@ -78,9 +81,12 @@ from .options import (
     frame_sinks,
     shares_reduction,
 )
+from .ownership import check_owned
 from .prewarm import Prewarm
 from .sensor_watch import SensorWatch, WatchReference
 from .sharing import attach, detach
+from .workers import Workers as _Workers
+from .workers import worker_count
 
 if TYPE_CHECKING:  # the depth code is imported only for depth bundles
     from ..depth import DepthResult, DepthStage
@@ -92,6 +98,7 @@ _log = logging.getLogger(__name__)
 _NO_CONTACT = int(Flags.NO_CONTACT)
 _STALE, _LATE, _INVALID = int(Flags.STALE), int(Flags.LATE), int(Flags.INVALID_INPUT)
 _MISMATCH, _OOD = int(Flags.BACKGROUND_MISMATCH), int(Flags.OUT_OF_DISTRIBUTION)
+_NO_FRAME = np.empty((0, 0, 3), np.uint8)
 
 
 @dataclass(slots=True)
@@ -110,16 +117,18 @@ class _Lane:
 
 @dataclass(slots=True)
 class _Pending:
-    """A frame in contact, waiting for the step's one batched predict."""
+    """One sensor's frame on its way through a step: admitted (read, stamped), gated (and
+    depth) by :meth:`ForceRuntime._gate`, possibly on a worker thread, then settled in the
+    loop's thread; a frame in contact waits for the step's one batched predict."""
 
     lane: _Lane
     tf: TimedFrame
-    frame: np.ndarray
-    gate: GateResult
     start_ns: int
-    source_ms: float
-    gate_ms: float
-    depth_ms: float = 0.0
+    lat: StageLatency
+    t1: int  # clock when the frame was read (the gate's time starts here without grabbers)
+    frame: np.ndarray  # the frame gated, checked (empty until then)
+    gate: GateResult | None = None  # None: the frame contract or its exposure refused it
+    res: DepthResult | None = None  # the depth stage's result (depth bundles, frames in contact)
     depth: np.ndarray | None = None
     net: np.ndarray | None = None  # the gate's reduced image when the model reads it as it is
 
@@ -128,13 +137,15 @@ class ForceRuntime:
     """Serve force readings for 1 to :data:`~tactile_force.edge.frames.MAX_BATCH` (16) sensors
     from one model.
 
-    sensors: 1 to 16 :class:`Sensor` (names unique; e.g. the fingertips of a hand). model: a
+    sensors: 1 to 16 :class:`Sensor` (names unique, each with its own source, gate and
+    depth stage: one part given to two sensors raises :class:`OptionsError` naming both;
+    e.g. the fingertips of a hand). model: a
     :class:`~.options.ForceModel` (OnnxForceModel, the OAK backend; a model lacking one of
     its members is refused with :class:`~tactile_force.edge.errors.ArgumentTypeError` naming
     it); a closed model is refused (:class:`ModelClosedError`). One model may be shared by
     several runtimes and threads (OnnxForceModel serialises its calls). depth_factory:
     builds one depth stage per sensor for depth models (default :func:`build_depth_stage`
-    from the bundle's manifest). clock: monotonic ns; give sources the same clock.
+    from the bundle's manifest; a new stage per call). clock: monotonic ns; give sources the same clock.
 
     owns_model: whether :meth:`close` closes the model. True (default, what callers that
     load a model for this runtime want): the model is closed, but only once the last runtime
@@ -163,14 +174,17 @@ class ForceRuntime:
         self.clock = clock
         self.backend = backend
         self.needs_depth = bool(model.needs_depth)
+        depths: list[DepthStage | None] = [s.depth for s in sensors]
         if self.needs_depth:
             from ..depth import DepthStage  # noqa: PLC0415 - depth bundles only
 
             manifest = bundle.manifest if bundle is not None else None
             factory = depth_factory or (lambda: build_depth_stage(None, manifest))
-            for s in sensors:
-                s.depth = expect(factory(), DepthStage, "ForceRuntime.depth_factory()",
-                                 "a DepthStage (e.g. build_depth_stage(settings, manifest))")
+            depths = [expect(factory(), DepthStage, "ForceRuntime.depth_factory()",
+                             "a DepthStage (e.g. build_depth_stage(settings, manifest))") for _ in sensors]
+        check_owned(sensors, depths)  # no source, gate or depth stage serves two sensors
+        for s, d in zip(sensors, depths):
+            s.depth = d
         self.stages = plan_stages(names, self.needs_depth, backend)
         self.stats = RuntimeStats()
         self._window = LatencyWindow(self.options.latency_window)
@@ -189,6 +203,11 @@ class ForceRuntime:
         use = self.options.grabbers
         self._use_grabbers = len(sensors) > 1 if use is None else bool(use)
         self._grabbers: _Grabbers | None = None
+        #: threads that run a step's per-sensor work when several frames are ready (workers.py)
+        self.workers = worker_count(self.options.workers, len(sensors), clock is time.monotonic_ns)
+        self._workers = _Workers(self.workers, "-".join(names)[:40]) if self.workers > 1 else None
+        if self._workers is not None:  # a runtime dropped without close() leaves no worker behind
+            weakref.finalize(self, self._workers.stop, 0.0)
         #: (frames, masks) to keep for frame sinks; (False, False) = none kept (zero cost).
         self.tap: tuple[bool, bool] = (False, False)
         #: (sensor, timestamp ns, HxWx3 uint8 BGR copy or None, HxW uint8 0/255 mask copy or
@@ -252,10 +271,7 @@ class ForceRuntime:
                 time.sleep(wait_ns / 1e9)
                 self._warm_up(warm, live)
             reads = [(s, _read(s.source, self.clock)) for s in live]
-        for s, rd in reads:
-            p = self._acquire(s, rd, out)
-            if p is not None:
-                pending.append(p)
+        self._acquire(reads, out, pending)
         if pending:
             self._infer(pending, out)
         for r in out:
@@ -310,20 +326,36 @@ class ForceRuntime:
         return self.stats
 
     def close(self) -> None:
-        """Stop the grabber threads, close every source, then the model when this runtime
-        owns it and no other runtime still uses it (see ``owns_model``). Idempotent."""
+        """Stop the grabber and worker threads, close every source, then the model when this
+        runtime owns it and no other runtime still uses it (see ``owns_model``). Idempotent.
+
+        Every part is released even when a source's ``close()`` raises: the model too; then
+        :class:`SourceError` names each sensor whose source failed to close (the first
+        failure chained)."""
         if self._closed:
             return
         self._closed = True
-        if self._grabbers is not None:
-            self._grabbers.stop(timeout_s=0.0)
-        for s in self.sensors:
-            s.source.close()
-        if self._grabbers is not None:
-            self._grabbers.stop()
-            self._grabbers = None
-        if detach(self.model, self.owns_model):
-            self.model.close()
+        failed: list[tuple[str, BaseException]] = []
+        try:
+            if self._grabbers is not None:
+                self._grabbers.stop(timeout_s=0.0)
+            for s in self.sensors:
+                try:
+                    s.source.close()
+                except Exception as exc:  # noqa: BLE001 - the other sources and the model are still released
+                    failed.append((s.name, exc))
+            if self._grabbers is not None:
+                self._grabbers.stop()
+                self._grabbers = None
+            if self._workers is not None:
+                self._workers.stop()
+        finally:
+            if detach(self.model, self.owns_model):
+                self.model.close()
+        if failed:
+            raise SourceError("ForceRuntime.close(): the source of " + "; of ".join(
+                f"sensor {name!r} failed to close ({type(exc).__name__}: {exc})" for name, exc in failed)
+                + "; every other source and the model were released") from failed[0][1]
 
     def _warm_up(self, warm: Prewarm, live: list[Sensor]) -> None:
         """The warm-up before the next frame (prewarm.py), timed and counted."""
@@ -361,9 +393,28 @@ class ForceRuntime:
         self._window.add(r.latency)
         return r
 
-    def _acquire(self, s: Sensor, r: _Read, out: list[ForceReading]) -> _Pending | None:
-        """Read, gate, watch and (depth bundles) depth one sensor's frame: a frame in contact
-        waits for the batched predict (returned); any other frame's reading goes to ``out``."""
+    def _acquire(self, reads: list[tuple[Sensor, _Read]], out: list[ForceReading],
+                 pending: list[_Pending]) -> None:
+        """Admit, gate, watch and (depth bundles) depth each read sensor's frame: a frame in
+        contact goes to ``pending`` for the batched predict, any other frame's reading to
+        ``out``. With two or more frames and workers (workers.py) the gate steps run on the
+        workers at once; admission and readings stay in this thread, in sensor order."""
+        workers = self._workers
+        if workers is None or len(reads) < 2:
+            for s, rd in reads:  # one thread: each sensor's frame from read to reading
+                p = self._admit(s, rd, out)
+                if p is not None:
+                    self._gate(p)
+                    if self._settle(p, out):
+                        pending.append(p)
+            return
+        admitted = [p for s, rd in reads if (p := self._admit(s, rd, out)) is not None]
+        workers.run(self._gate, admitted)
+        pending += [p for p in admitted if self._settle(p, out)]
+
+    def _admit(self, s: Sensor, r: _Read, out: list[ForceReading]) -> _Pending | None:
+        """One sensor's read: a source error or the end of its stream ends the sensor, frames
+        it skipped become ``stale`` readings (to ``out``); the frame read is returned."""
         if r.error is not None:
             exc = r.error
             s.alive, s.error = False, str(exc)
@@ -385,41 +436,57 @@ class ForceRuntime:
         if self._prewarm is not None:
             self._prewarm.seen(s.name, start)
             self.stats.prewarm_overran = self._prewarm.overran
-        lat = StageLatency(source_ms=(t1 - r.t0) / 1e6)  # clock ns -> ms, here and below
-        if self._grabbers is not None:
-            t1 = self.clock()  # the gate's time starts here (the grabber's read was earlier)
         lane = self._lanes[s.name]
         lane.last = None
+        return _Pending(lane, tf, start, StageLatency(source_ms=(t1 - r.t0) / 1e6), t1, _NO_FRAME)  # ns -> ms
+
+    def _gate(self, p: _Pending) -> None:
+        """The frame's own sensor's work: gate, sensor watch and, in contact, the depth stage
+        (depth bundles); touches that sensor's parts only (a worker thread may run it)."""
+        lane = p.lane
+        t1 = self.clock() if self._grabbers is not None else p.t1  # the grabber's read was earlier
         gating = lane.gating
-        g = gating.run(tf)  # gate
+        g = p.gate = gating.run(p.tf)  # gate
         if g is None:  # the frame contract or its exposure refused it
-            out.append(self._finish(self._judge.invalid(s.name, tf, lat, gating.problem), start))
-            return None
-        frame = gating.frame
+            return
+        frame = p.frame = gating.frame
         lane.watch.observe(frame, g)  # sensor watch
-        if self.tap[0] or self.tap[1]:  # copies: the gate reuses its mask, a source may reuse its frame
-            self.tapped.append((s.name, tf.timestamp_ns, frame.copy() if self.tap[0] else None,
-                                g.mask.copy() if self.tap[1] else None))
         t2 = self.clock()
+        lat = p.lat
         lat.gate_ms = (t2 - t1) / 1e6
+        if g.mismatch or g.invalid or not g.contact:
+            return
+        depth = lane.sensor.depth
+        if depth is not None:  # depth
+            p.res = _depth_of(depth, frame, g)
+            lat.depth_ms = (self.clock() - t2) / 1e6
+
+    def _settle(self, p: _Pending, out: list[ForceReading]) -> bool:
+        """The reading of a gated frame that needs no model (to ``out``: False), or True: the
+        frame waits for the batched predict."""
+        lane, tf, g = p.lane, p.tf, p.gate
+        name, lat = lane.sensor.name, p.lat
+        if g is None:
+            out.append(self._finish(self._judge.invalid(name, tf, lat, lane.gating.problem), p.start_ns))
+            return False
+        if self.tap[0] or self.tap[1]:  # copies: the gate reuses its mask, a source may reuse its frame
+            frame = p.frame
+            self.tapped.append((name, tf.timestamp_ns, frame.copy() if self.tap[0] else None,
+                                g.mask.copy() if self.tap[1] else None))
         if g.mismatch or g.invalid or not g.contact:  # judged without the model
-            out.append(self._finish(self._judge.gated(s.name, tf, g, lat, lane.watch.pressed, s.gate), start))
-            return None
-        p = _Pending(lane, tf, frame, g, start, lat.source_ms, lat.gate_ms)
+            out.append(self._finish(self._judge.gated(name, tf, g, lat, lane.watch.pressed, lane.sensor.gate),
+                                    p.start_ns))
+            return False
         if lane.shared:
             p.net = g.reduced
-        depth = s.depth
-        if depth is not None:  # depth
-            res = _depth_of(depth, frame, g)
-            t3 = self.clock()
-            p.depth_ms = (t3 - t2) / 1e6
+        res = p.res
+        if res is not None:
             if not res.ok:
-                lat.depth_ms = p.depth_ms
-                out.append(self._finish(self._judge.invalid(s.name, tf, lat, f"depth stage failed: {res.detail}",
-                                                            g.area_px), start))
-                return None
+                out.append(self._finish(self._judge.invalid(name, tf, lat, f"depth stage failed: {res.detail}",
+                                                            g.area_px), p.start_ns))
+                return False
             p.depth = res.depth
-        return p
+        return True
 
     def _infer(self, pending: list[_Pending], out: list[ForceReading]) -> None:
         """One batched predict for the step's frames in contact, then each one's reading."""
@@ -459,10 +526,13 @@ class ForceRuntime:
         self.stats.inferred += n
         judge = self._judge
         for p, raw in zip(pending, forces):
+            g = p.gate
+            assert g is not None  # a frame in contact
             if self._prewarm is not None:
-                p.lane.last = (p.tf, float(raw), p.gate)
-            lat = StageLatency(p.source_ms, p.gate_ms, p.depth_ms, inf_ms)
-            r = judge.estimate(p.lane.sensor.name, p.tf, float(raw), p.gate, lat, error, p.lane.watch.foreign)
+                p.lane.last = (p.tf, float(raw), g)
+            lat = p.lat
+            lat.inference_ms = inf_ms
+            r = judge.estimate(p.lane.sensor.name, p.tf, float(raw), g, lat, error, p.lane.watch.foreign)
             out.append(self._finish(r, p.start_ns))
 
     def _count(self, r: ForceReading) -> None:

@@ -16,7 +16,7 @@ import numpy as np
 from ..bundle.manifest import FrameReduction
 from ..checks import check_fields, expect, expect_members
 from ..errors import ArgumentTypeError, OptionsError
-from ..frames import MAX_BATCH, FrameSource
+from ..frames import MAX_BATCH, FrameReader, FrameSource
 from ..gate.contact_gate import ContactGate
 from ..reading import ForceReading, StageLatency
 from ..typed_json import check
@@ -161,6 +161,11 @@ class RuntimeOptions:
     latency_window: frames kept for the rolling p50/p99.
     grabbers: read each sensor in its own grabber thread (None: when there are two or more
     sensors; one sensor is read in the loop's thread, the lowest-latency path).
+    workers: threads that run a step's per-sensor work (contact gate, sensor watch, depth
+    stage) when two or more sensors' frames are ready together, the loop's own thread
+    included (edge/runtime/workers.py); the batched predict and the readings stay in the
+    loop's thread. None (auto): 2 when there are several sensors, two or more cores and the
+    real clock (``time.monotonic_ns``), else 1 (one sensor always runs in one thread).
     prewarm: at a slow cadence (frames 4 ms or more apart, e.g. a 60 fps sensor), wake
     shortly before the next frame is due and run its gate and model once on the last frame,
     results thrown away, so the frame finds caches warm (edge/runtime/prewarm.py): about half
@@ -168,7 +173,7 @@ class RuntimeOptions:
     (docs/benchmarks/cadence.md). Only with the runtime's real clock (``time.monotonic_ns``).
 
     Raises :class:`OptionsError` naming the field when deadline_ms is not a finite number > 0,
-    threads < 1 or latency_window < 1, :class:`ArgumentTypeError` for a value of another type."""
+    threads < 1, latency_window < 1 or workers not 1 to 16, :class:`ArgumentTypeError` for a value of another type."""
 
     deadline_ms: float = field(default=16.7, metadata=check(
         gt=0, expected="a finite number of milliseconds > 0 (e.g. 16.7 for 60 fps)"))
@@ -177,6 +182,8 @@ class RuntimeOptions:
     latency_window: int = field(default=600, metadata=check(ge=1))
     grabbers: bool | None = None
     prewarm: bool = True
+    workers: int | None = field(default=None, metadata=check(
+        ge=1, le=MAX_BATCH, expected=f"None (auto) or 1 to {MAX_BATCH} threads (one per sensor at most is used)"))
 
     def __post_init__(self) -> None:
         check_fields(self)
@@ -196,10 +203,15 @@ class Sensor:
 
     def __post_init__(self) -> None:
         expect(self.name, str, "Sensor.name", "a non-empty string (the sensor's name in readings)", nonempty=True)
-        if not callable(getattr(self.source, "read", None)):
-            raise ArgumentTypeError(f"Sensor.source={self.source!r}: expected a frame source (an object with read() "
-                                    f"and close(), e.g. ReplayFolderSource(folder)), got {type(self.source).__name__}")
+        check_source(self.source, "Sensor.source")
         expect(self.gate, ContactGate, "Sensor.gate", "a ContactGate (one per sensor)")
+
+
+def check_source(source: object, name: str) -> None:
+    """Refuse a frame source lacking a :class:`~tactile_force.edge.frames.FrameReader` member
+    (``read``, ``close``): :class:`ArgumentTypeError` naming ``name`` and every missing member."""
+    expect_members(source, FrameReader, name, "a frame source with read() and close() (e.g. "
+                   "ReplayFolderSource(folder); a source of your own can subclass FrameSource)")
 
 
 @dataclass
@@ -280,6 +292,7 @@ def check_runtime_args(sensors: object, model: object, options: object, clock: o
         raise OptionsError(f"ForceRuntime.sensors: {len(sensors)} sensors; expected 1 to {MAX_BATCH}{why}")
     for i, s in enumerate(sensors):
         expect(s, Sensor, f"ForceRuntime.sensors[{i}]", "a Sensor(name, source, gate)")
+        check_source(s.source, f"ForceRuntime.sensors[{i}].source")  # replaced since the Sensor was made?
     expect_members(model, ForceModel, "ForceRuntime.model",
                    "a force model with predict() and the other ForceModel members (e.g. OnnxForceModel(bundle); "
                    "a backend of your own can subclass ForceModelBase for the members it does not need)")

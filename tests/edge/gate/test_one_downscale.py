@@ -169,7 +169,7 @@ def test_one_downscale_per_frame_shared_by_gate_and_model(monkeypatch, sensors):
         return r
 
     monkeypatch.setattr(ContactGate, "update", spy)
-    rt = ForceRuntime(sens, watch, RuntimeOptions(deadline_ms=1e9, grabbers=False))
+    rt = ForceRuntime(sens, watch, RuntimeOptions(deadline_ms=1e9, grabbers=False, workers=1))  # gate spies in order
     calls["n"] = 0
     readings: list = []
     rt.run(on_reading=readings.append)

@@ -1,6 +1,7 @@
-"""One runtime serving a whole hand: 8 sensors, one batched predict for the frames that are
-ready together, each reading with its own sensor's name, frame index and time stamp; a dead
-or blocked sensor holds up no other; batching changes no sensor's force. Real ONNX Runtime
+"""One runtime serving a whole hand: 8 sensors, their frames gated on two worker threads, one
+batched predict for the frames that are ready together, each reading with its own sensor's
+name, frame index and time stamp; a dead or blocked sensor holds up no other; batching and
+the workers change no sensor's force. Real ONNX Runtime
 sessions (the shipped default bundle), real gates and real DIGIT frames; the sources are
 in-memory lists, fakes only where a camera would block or fail. No wall-clock assertions."""
 
@@ -25,15 +26,17 @@ from tests.conftest import ListSource, shared_data
 
 N = 8
 WAIT_S = 20.0  # generous: only a hung thread ever gets near it
-OPTIONS = RuntimeOptions(deadline_ms=1e6)  # no `late` flags on a loaded machine: flags compared as made
+# No `late` flags on a loaded machine (flags compared as made); a step's per-sensor work on two
+# threads, as on a host with two cores (auto), whatever this host has.
+OPTIONS = RuntimeOptions(deadline_ms=1e6, workers=2)
 
 
 def _background_path():
     return shared_data("digit_backgrounds", "aurova_background_b.png")
 
 
-def _gate() -> ContactGate:
-    g = ContactGate()
+def _gate(kind: type[ContactGate] = ContactGate) -> ContactGate:
+    g = kind()
     g.capture_background(load_background(_background_path()))
     return g
 
@@ -102,10 +105,12 @@ def _names() -> list[str]:
     return [f"finger{k}" for k in range(N)]
 
 
-def _hand(model, hand_frames, **fail) -> ForceRuntime:
-    sensors = [Sensor(name, StampedList(hand_frames[k], k, fail.get(name)), _gate())
+def _hand(model, hand_frames, gate=ContactGate, **fail) -> ForceRuntime:
+    sensors = [Sensor(name, StampedList(hand_frames[k], k, fail.get(name)), _gate(gate))
                for k, name in enumerate(_names())]
-    return ForceRuntime(sensors, model, OPTIONS, owns_model=False)
+    rt = ForceRuntime(sensors, model, OPTIONS, owns_model=False)
+    assert rt.workers == 2
+    return rt
 
 
 def _run_all(rt: ForceRuntime) -> tuple[list, list[list]]:
@@ -149,6 +154,7 @@ def test_a_batched_call_gives_each_sensor_the_force_it_gives_alone(bundle, hand_
     for k, name in enumerate(_names()):
         alone = ForceRuntime([Sensor(name, StampedList(hand_frames[k], k), _gate())], model, OPTIONS,
                              owns_model=False)
+        assert alone.workers == 1  # one sensor: the loop's thread only
         solo = []
         while not alone.finished:
             solo += alone.step()
@@ -157,6 +163,34 @@ def test_a_batched_call_gives_each_sensor_the_force_it_gives_alone(bundle, hand_
         assert [r.flags for r in by[name]] == [r.flags for r in solo], name
         assert [(r.force_low_n, r.force_high_n) for r in by[name]] == [(r.force_low_n, r.force_high_n) for r in solo]
     model.close()
+
+
+class MeetingGate(ContactGate):
+    """A real gate whose first update waits (up to WAIT_S) until another sensor's gate is in
+    its first update too: only two threads gating at once get past it."""
+
+    meet = threading.Barrier(2, timeout=WAIT_S)  # on the class: no gate holds it (parts are their own)
+    met: set[str] = set()
+
+    def update(self, frame):
+        if not getattr(self, "_met", False):
+            self._met = True
+            MeetingGate.meet.wait()  # BrokenBarrierError when no second thread ever comes
+            MeetingGate.met.add(threading.current_thread().name)
+        return super().update(frame)
+
+
+def test_frames_ready_together_are_gated_on_two_threads_and_batched_once(model, hand_frames):
+    rt = _hand(model, hand_frames, gate=MeetingGate)
+    readings, steps = _run_all(rt)
+    assert len(MeetingGate.met) == 2 and threading.current_thread().name in MeetingGate.met  # the loop and a worker
+    touching = [r for r in steps[0] if not r.flags & Flags.NO_CONTACT]
+    assert len(touching) == N - 1 and len({r.latency.inference_ms for r in touching}) == 1  # still one predict
+    by = _by_sensor(readings)
+    for k, name in enumerate(_names()):
+        assert [(r.frame_index, r.timestamp_ns) for r in by[name]] == [(i, _stamp(k, i)) for i in range(12)], name
+    mine = f"work-{'-'.join(_names())[:40]}-"
+    assert not [t for t in threading.enumerate() if t.name.startswith(mine)]  # close() ended the workers
 
 
 def test_a_dead_sensor_ends_alone(model, hand_frames):
