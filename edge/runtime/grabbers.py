@@ -98,6 +98,12 @@ class Grabbers:
             return self._cond.wait_for(lambda: self._failure is not None
                                        or all(self._slots[s.name] is not None for s in live), timeout_s)
 
+    def ready(self, live: Sequence[S]) -> bool:
+        """Whether a read of any of ``live`` (or a failure) waits to be taken: a glance
+        without the lock (a warm-up asks between its parts whether to give way)."""
+        slots = self._slots
+        return self._failure is not None or any(slots[s.name] is not None for s in live)
+
     def take(self, live: Sequence[S], timeout_s: float | None = None) -> list[tuple[S, Read]]:
         """Every live sensor's waiting read, in sensor order: at least one, or none when
         ``timeout_s`` seconds passed first (None: wait as long as it takes)."""
