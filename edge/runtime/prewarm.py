@@ -12,9 +12,12 @@ bound input once more; every result thrown away, no state changed). The real fra
 finds the code and data warm.
 
 Nothing here is tuned to one host: the warm-up is planned to end before the frame is due by
-its own measured cold duration, how late the rest before it ended (a sleep on a virtual
-machine wakes 0.1 to 0.3 ms late) and how early frames came against their prediction (the
-margin), each the largest of the last :data:`WARM_HISTORY`. A planned rest never exceeds the
+its own measured cold duration and how late the rest before it ended (a sleep on a virtual
+machine wakes 0.1 to 0.3 ms late), each the largest of the last :data:`WARM_HISTORY`, and the
+margin: how early frames came against their prediction, the median of the last
+:data:`WARM_HISTORY` frames (a core left to rest even a fraction of a millisecond after the
+warm-up goes cold again, and a frame that comes early waits at most for the warm-up's part
+under way, so the typical earliness, not the worst). A planned rest never exceeds the
 measured period. The runtime rests in a way a frame ends (its grabber threads:
 ``Grabbers.take`` with a timeout) and looks between the warm-up's parts (each sensor's gate
 pass, the model call) whether a frame arrived: then the warm-up is abandoned
@@ -45,7 +48,7 @@ FIRST_WARM_NS = 700_000
 #: Arrival gaps kept per sensor (the period is their median: a dropped frame does not move it).
 HISTORY = 5
 #: Warm-up durations, wake-up delays and early arrivals kept (the lead is the sum of the
-#: largest of each).
+#: largest duration, the largest delay and the median earliness).
 WARM_HISTORY = 8
 
 
@@ -120,16 +123,16 @@ class Prewarm:
 
     @property
     def margin_ns(self) -> int:
-        """How much earlier than predicted frames came lately (ns): the warm-up aims to end
-        this long before the frame is due."""
-        return max(self._early)
+        """How much earlier than predicted frames came lately, the median of the last
+        :data:`WARM_HISTORY` (ns): the warm-up aims to end this long before the frame is due."""
+        return sorted(self._early)[WARM_HISTORY // 2]
 
     @property
     def lead_ns(self) -> int:
         """How long before the frame is due the rest before the warm-up is planned to end
         (ns): the warm-up's longest recent duration, the longest recent delay of a wake-up
         and :attr:`margin_ns`."""
-        return max(self._warm) + max(self._late) + max(self._early)
+        return max(self._warm) + max(self._late) + self.margin_ns
 
     def wait_ns(self, names: Iterable[str]) -> int:
         """How long to rest before warming up for the next frame of any of ``names`` (ns), or

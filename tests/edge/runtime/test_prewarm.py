@@ -99,9 +99,11 @@ def test_the_lead_follows_the_measured_warm_up_and_wake_up():
     assert p.lead_ns == 2_000_000 + 400_000
     p.seen("a", last + PERIOD - 500_000)  # the frame came 0.5 ms early, while the warm-up still ran
     assert p.overran == 1
-    assert p.margin_ns == 500_000  # how early it came: the margin from now on
+    assert p.margin_ns == 0  # one early frame in eight: not the typical one
+    for _ in range(4):  # now frames come 0.5 ms before their prediction more often than not
+        p.seen("a", p._cadence["a"].due - 500_000)
+    assert p.margin_ns == 500_000
     assert p.lead_ns == 2_000_000 + 400_000 + 500_000
-    p.seen("a", clock.t + PERIOD)
     assert p.overran == 1
 
 
