@@ -212,6 +212,7 @@ class ForceRuntime:
         if blocked and mode is not False:
             self._decision.state = f"off ({blocked})"
         self._prewarm = Prewarm(clock) if mode is not False and not blocked else None
+        self._lone = use is None and len(sensors) == 1  # a grabber thread only while warm-ups run
         self.stats.prewarm = self._decision.state
         self._model_prewarm: Callable[[int], None] | None = getattr(model, "prewarm", None)
         attach(model)  # last: a runtime that failed to build does not count as a user
@@ -256,6 +257,8 @@ class ForceRuntime:
         if warm is not None:
             if self._decision.active():  # warm-ups in this step (prewarm_decision.py)
                 wait_ns = warm.wait_ns(s.name for s in live)
+            elif self._lone and self._grabbers is not None:  # back to the loop's thread
+                self._retire_grabber(self._grabbers)
             self.stats.prewarm = self._decision.state
         if self._use_grabbers or wait_ns >= 0:  # a rest is taken on the grabbers: a frame ends it
             grabbers = self._start()
@@ -294,7 +297,19 @@ class ForceRuntime:
             return True
         return self._start().wait_all([s for s in self.sensors if s.alive], wait_s)
 
+    def _retire_grabber(self, g: _Grabbers) -> None:
+        """One sensor without warm-ups is read in the loop's thread again (the lowest-latency
+        path), once the grabber has handed over the read it was making."""
+        g.retire()
+        if g.retired():
+            g.stop()
+            self._grabbers, self._use_grabbers = None, False
+
     def _start(self) -> _Grabbers:
+        g = self._grabbers
+        if g is not None and g.retiring and g.retired():  # warm-ups again after a retired grabber
+            self._grabbers.stop()
+            self._grabbers = None
         if self._grabbers is None:
             self._grabbers = _Grabbers(self.sensors, self.clock)
             self._use_grabbers = True

@@ -519,3 +519,30 @@ def test_the_prewarm_state_says_what_the_runtime_does(frames, model):
     rt = ForceRuntime([Sensor("s", ListSource(seq[:3]), g)], model, RuntimeOptions(grabbers=False), owns_model=False)
     rt.close()
     assert rt.stats.prewarm.startswith("off (RuntimeOptions.grabbers=False")
+
+
+def test_one_sensor_goes_back_to_the_loops_thread_when_warm_ups_stop(frames, model):
+    """One sensor gets a grabber thread while warm-ups run and reads in the loop's thread
+    again while they do not (a decision on a fake clock flips every two steps): no frame is
+    lost or repeated, every reading is the one made without warm-ups."""
+    from tactile_force.edge.runtime.prewarm_decision import WINDOW_NS, PrewarmDecision
+
+    free, seq = frames
+    seq = seq[:24]
+    want, _ = _run(seq, free, model, 1, prewarm=False, paced=False)
+    rt = _runtime(free, model, [PacedList(seq, 50)], "auto")
+    fake = FakeClock(0)
+    rt._decision = PrewarmDecision("auto", fake, cpu=lambda: 0)
+    got, threads = [], []
+    try:
+        while not rt.finished:
+            got += [(r.sensor, r.frame_index, r.force_n, int(r.flags), r.contact_area_px, r.detail) for r in rt.step()]
+            threads.append(rt._grabbers is not None)
+            fake.t += WINDOW_NS // 2
+    finally:
+        rt.close()
+    np.testing.assert_equal(sorted(got, key=lambda r: (r[0], r[1])), want)
+    assert [r[1] for r in got] == list(range(len(seq)))
+    first = threads.index(True)
+    assert False in threads[first:]  # retired after warm-ups stopped
+    assert True in threads[first + threads[first:].index(False):]  # and back for the next warm-ups
