@@ -308,7 +308,7 @@ class ForceRuntime:
     def _start(self) -> _Grabbers:
         g = self._grabbers
         if g is not None and g.retiring and g.retired():  # warm-ups again after a retired grabber
-            self._grabbers.stop()
+            g.stop()
             self._grabbers = None
         if self._grabbers is None:
             self._grabbers = _Grabbers(self.sensors, self.clock)
