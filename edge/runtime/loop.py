@@ -201,8 +201,8 @@ class ForceRuntime:
         self._judge = Judge(bundle)  # flags, honest force, error bar of every reading (judging.py)
         # Getting ready shortly before the next frame is due at a slow cadence (prewarm.py),
         # where it pays on this host (prewarm_decision.py): only with the real clock, which the
-        # rest is taken on, and grabber threads, whose frame ends the rest (one sensor gets its
-        # grabber at the first rest).
+        # rest is taken on, and grabber threads, whose frame ends the rest (one sensor has a
+        # grabber thread only while warm-ups run).
         mode = self.options.prewarm if self.options.prewarm == "auto" else bool(self.options.prewarm)
         blocked = ("the runtime's clock is injected; the rest is taken on time.monotonic_ns"
                    if clock is not time.monotonic_ns else

@@ -160,8 +160,8 @@ class RuntimeOptions:
     report_stale: emit a ``stale`` reading for every superseded frame.
     latency_window: frames kept for the rolling p50/p99.
     grabbers: read each sensor in its own grabber thread (None: when there are two or more
-    sensors; one sensor is read in the loop's thread, the lowest-latency path, until its first
-    rest before a warm-up, which is taken on a grabber thread).
+    sensors; one sensor is read in the loop's thread, the lowest-latency path, except while
+    warm-ups run: their rest is taken on a grabber thread, which a frame ends).
     prewarm: warm-ups at a slow cadence (frames 4 ms or more apart, e.g. a 60 fps sensor):
     wake shortly before the next frame is due and run its gate and model once on the last
     frame, results thrown away, so the frame finds caches warm (edge/runtime/prewarm.py); a

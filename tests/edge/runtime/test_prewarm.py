@@ -261,7 +261,7 @@ def _run(frames, free, model, n_sensors: int, prewarm: bool, paced: bool):
 
 @pytest.mark.parametrize("n_sensors", [1, 2, 8])
 def test_readings_with_warm_ups_equal_readings_without(frames, model, n_sensors):
-    """One sensor (read in the loop's thread, then in a grabber thread once it rests), two and
+    """One sensor (read in a grabber thread while warm-ups run), two and
     eight (grabber threads) at 50 / 20 fps: the runtime warms up before frames (counted) and
     every reading is the one made without."""
     free, seq = frames
