@@ -783,7 +783,8 @@ def _options_classes() -> list[type]:
 
 def _kind(annotation: Any) -> str:
     a = str(annotation).replace(" ", "")
-    return {"int": "int", "float": "float", "bool": "bool", "bool|None": "bool|None"}.get(a, a)
+    return {"int": "int", "float": "float", "bool": "bool", "bool|None": "bool|None",
+            "Literal['auto',True,False]": "auto|bool"}.get(a, a)
 
 
 _COMMON_WRONG = st.one_of(st.text(max_size=6), st.lists(st.integers(0, 3), max_size=2),
@@ -802,6 +803,8 @@ def wrong_values(kind: str) -> st.SearchStrategy[Any]:
         return st.one_of(_COMMON_WRONG, st.none(), st.integers(-2, 2), st.floats())
     if kind == "bool|None":
         return st.one_of(_COMMON_WRONG, st.integers(-2, 2), st.floats())
+    if kind == "auto|bool":
+        return st.one_of(_COMMON_WRONG.filter(lambda v: v != "auto"), st.none(), st.integers(-2, 2), st.floats())
     raise ValueError(f"no wrong values for {kind!r}")
 
 
@@ -816,7 +819,7 @@ def wrong_options(draw: Callable[[st.SearchStrategy[Any]], Any]) -> tuple[str, s
 def _valid(kind: str, default: Any) -> Any:
     """A value of the right type that is not a plain Python one (numpy) or flips a flag."""
     return {"int": lambda: np.int64(default), "float": lambda: np.float64(default), "bool": lambda: not default,
-            "bool|None": lambda: True}[kind]()
+            "bool|None": lambda: True, "auto|bool": lambda: np.bool_(False)}[kind]()
 
 
 def _accepts(error: BaseException) -> bool:

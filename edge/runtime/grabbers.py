@@ -67,6 +67,7 @@ class Grabbers:
         self._slots: dict[str, Read | None] = {s.name: None for s in sensors}
         self._failure: BaseException | None = None
         self._stop = False
+        self._retire = False
         self._threads = [threading.Thread(target=self._loop, args=(s, clock), name=f"read-{s.name}", daemon=True)
                          for s in sensors]
         for t in self._threads:
@@ -89,7 +90,8 @@ class Grabbers:
                     return
                 self._slots[s.name] = r
                 self._cond.notify_all()  # the loop's thread only waits on it
-            if r.tf is None:  # end of the stream or a source error: this sensor is done
+                retire = self._retire
+            if r.tf is None or retire:  # end of the stream, a source error, or retired: done
                 return
 
     def wait_all(self, live: Sequence[S], timeout_s: float) -> bool:
@@ -97,6 +99,29 @@ class Grabbers:
         with self._cond:
             return self._cond.wait_for(lambda: self._failure is not None
                                        or all(self._slots[s.name] is not None for s in live), timeout_s)
+
+    def retire(self) -> None:
+        """Let each thread end once it has handed over the read under way (none is lost): the
+        loop's thread reads the sources itself again once :meth:`retired`."""
+        with self._cond:
+            self._retire = True
+
+    @property
+    def retiring(self) -> bool:
+        return self._retire
+
+    def retired(self) -> bool:
+        """True once :meth:`retire` was called, every thread has ended and every read was
+        taken (until then :meth:`take` still gets each pending read)."""
+        with self._cond:
+            return (self._retire and all(r is None for r in self._slots.values())
+                    and not any(t.is_alive() for t in self._threads))
+
+    def ready(self, live: Sequence[S]) -> bool:
+        """Whether a read of any of ``live`` (or a failure) waits to be taken: a glance
+        without the lock (a warm-up asks between its parts whether to give way)."""
+        slots = self._slots
+        return self._failure is not None or any(slots[s.name] is not None for s in live)
 
     def take(self, live: Sequence[S], timeout_s: float | None = None) -> list[tuple[S, Read]]:
         """Every live sensor's waiting read, in sensor order: at least one, or none when

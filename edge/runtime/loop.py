@@ -83,6 +83,7 @@ from .options import (
 )
 from .ownership import check_owned
 from .prewarm import Prewarm
+from .prewarm_decision import PrewarmDecision
 from .sensor_watch import SensorWatch, WatchReference
 from .sharing import attach, detach
 from .workers import Workers as _Workers
@@ -217,9 +218,21 @@ class ForceRuntime:
         self._lanes = {s.name: _Lane(s, GateStep(s.name, s.gate), SensorWatch(s, reference), sh)
                        for s, sh in zip(sensors, shared)}
         self._judge = Judge(bundle)  # flags, honest force, error bar of every reading (judging.py)
-        # Getting ready shortly before the next frame is due at a slow cadence (prewarm.py):
-        # only with the real clock, which the warm-up's rest is slept on.
-        self._prewarm = Prewarm(clock) if self.options.prewarm and clock is time.monotonic_ns else None
+        # Getting ready shortly before the next frame is due at a slow cadence (prewarm.py),
+        # where it pays on this host (prewarm_decision.py): only with the real clock, which the
+        # rest is taken on, and grabber threads, whose frame ends the rest (one sensor has a
+        # grabber thread only while warm-ups run).
+        mode = self.options.prewarm if self.options.prewarm == "auto" else bool(self.options.prewarm)
+        blocked = ("the runtime's clock is injected; the rest is taken on time.monotonic_ns"
+                   if clock is not time.monotonic_ns else
+                   "RuntimeOptions.grabbers=False: nothing could end the rest when a frame arrives"
+                   if use is not None and not use else "")
+        self._decision = PrewarmDecision(False if blocked else mode, clock)
+        if blocked and mode is not False:
+            self._decision.state = f"off ({blocked})"
+        self._prewarm = Prewarm(clock) if mode is not False and not blocked else None
+        self._lone = use is None and len(sensors) == 1  # a grabber thread only while warm-ups run
+        self.stats.prewarm = self._decision.state
         self._model_prewarm: Callable[[int], None] | None = getattr(model, "prewarm", None)
         attach(model)  # last: a runtime that failed to build does not count as a user
 
@@ -259,23 +272,28 @@ class ForceRuntime:
         if not live:
             return out
         warm = self._prewarm
-        wait_ns = warm.wait_ns(s.name for s in live) if warm is not None else -1
-        if self._use_grabbers:
+        wait_ns = -1
+        if warm is not None:
+            if self._decision.active():  # warm-ups in this step (prewarm_decision.py)
+                wait_ns = warm.wait_ns(s.name for s in live)
+            elif self._lone and self._grabbers is not None:  # back to the loop's thread
+                self._retire_grabber(self._grabbers)
+            self.stats.prewarm = self._decision.state
+        if self._use_grabbers or wait_ns >= 0:  # a rest is taken on the grabbers: a frame ends it
             grabbers = self._start()
             reads = grabbers.take(live, wait_ns / 1e9) if wait_ns >= 0 else grabbers.take(live)
             if not reads and warm is not None:  # rested until shortly before the next frame
-                self._warm_up(warm, live)
+                self._warm_up(warm, live, grabbers)
                 reads = grabbers.take(live)
         else:
-            if wait_ns >= 0 and warm is not None:
-                time.sleep(wait_ns / 1e9)
-                self._warm_up(warm, live)
             reads = [(s, _read(s.source, self.clock)) for s in live]
         self._acquire(reads, out, pending)
         if pending:
             self._infer(pending, out)
         for r in out:
             self._count(r)
+        if self._decision.recording:
+            self._decision.add(out)
         return out
 
     def check_backgrounds(self) -> dict[str, str]:
@@ -295,9 +313,22 @@ class ForceRuntime:
             return True
         return self._start().wait_all([s for s in self.sensors if s.alive], wait_s)
 
+    def _retire_grabber(self, g: _Grabbers) -> None:
+        """One sensor without warm-ups is read in the loop's thread again (the lowest-latency
+        path), once the grabber has handed over the read it was making."""
+        g.retire()
+        if g.retired():
+            g.stop()
+            self._grabbers, self._use_grabbers = None, False
+
     def _start(self) -> _Grabbers:
+        g = self._grabbers
+        if g is not None and g.retiring and g.retired():  # warm-ups again after a retired grabber
+            g.stop()
+            self._grabbers = None
         if self._grabbers is None:
             self._grabbers = _Grabbers(self.sensors, self.clock)
+            self._use_grabbers = True
         return self._grabbers
 
     def run(self, sinks: Iterable[ReadingSink] = (), max_frames: int | None = None,
@@ -357,19 +388,26 @@ class ForceRuntime:
                 f"sensor {name!r} failed to close ({type(exc).__name__}: {exc})" for name, exc in failed)
                 + "; every other source and the model were released") from failed[0][1]
 
-    def _warm_up(self, warm: Prewarm, live: list[Sensor]) -> None:
-        """The warm-up before the next frame (prewarm.py), timed and counted."""
-        warm.timed(lambda: self._warm_parts(live))
-        self.stats.prewarms = warm.count
+    def _warm_up(self, warm: Prewarm, live: list[Sensor], grabbers: _Grabbers) -> None:
+        """The warm-up before the next frame (prewarm.py), timed and counted; given up as soon
+        as a frame is there."""
+        warm.timed(lambda: self._warm_parts(live, lambda: grabbers.ready(live)))
+        self._decision.warmed()
+        st = self.stats
+        st.prewarms, st.prewarm_abandoned = warm.count, warm.abandoned
 
-    def _warm_parts(self, live: list[Sensor]) -> None:
+    def _warm_parts(self, live: list[Sensor], arrived: Callable[[], bool]) -> float:
         """Each live sensor's gate step once more on its last frame and, when that frame went
         to the model, its judge and depth stage (depth bundles), then one model call on the
-        last input; results thrown away, no state changed. A warm-up that fails turns
-        warm-ups off (one warning): it is never worth a reading."""
+        last input; results thrown away, no state changed. Given up before any of these parts
+        once ``arrived()`` says a frame is there; returns the share of the parts it ran. A
+        warm-up that fails turns warm-ups off (one warning): it is never worth a reading."""
+        parts = len(live) + 1
         try:
             n = 0
-            for s in live:
+            for k, s in enumerate(live):
+                if arrived():
+                    return k / parts
                 lane = self._lanes[s.name]
                 lane.gating.prewarm()
                 if lane.last is not None:
@@ -379,11 +417,16 @@ class ForceRuntime:
                     if s.depth is not None:  # into the stage's buffers
                         _depth_of(s.depth, lane.gating.frame, g)
             if n and self._model_prewarm is not None:
+                if arrived():
+                    return len(live) / parts
                 self._model_prewarm(n)
         except Exception as exc:  # noqa: BLE001 - the frame that follows must still be served
             self._prewarm = None
+            self._decision = PrewarmDecision(False, self.clock)
+            self.stats.prewarm = self._decision.state = f"off (a warm-up failed: {type(exc).__name__}: {exc})"
             _log.warning("ForceRuntime(%s): a warm-up before a frame failed (%s: %s); warm-ups are off for this "
                          "runtime", ", ".join(s.name for s in self.sensors), type(exc).__name__, exc)
+        return 1.0
 
     # -- the steps of one frame -------------------------------------------------------------
     def _finish(self, r: ForceReading, start_ns: int) -> ForceReading:
@@ -433,6 +476,11 @@ class ForceRuntime:
         # Latency counts from when the source had the frame (its arrival stamp); a source
         # that stamps none: from when read() returned it.
         start = tf.arrival_ns if tf.arrival_ns is not None else t1
+        if start > t1:  # on one clock a frame is stamped before read() returned it
+            raise SourceError(f"sensor {s.name!r}: {type(s.source).__name__} stamped frame {tf.index} "
+                              f"TimedFrame.arrival_ns={start}, after read() returned it at {t1} on the runtime's "
+                              "clock; expected arrival stamps of the runtime's clock (time.monotonic_ns() unless "
+                              "ForceRuntime was given another clock; not time.time_ns())")
         if self._prewarm is not None:
             self._prewarm.seen(s.name, start)
             self.stats.prewarm_overran = self._prewarm.overran

@@ -9,7 +9,7 @@ import abc
 import math
 from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass, field
-from typing import TYPE_CHECKING, Protocol, cast
+from typing import TYPE_CHECKING, Literal, Protocol, cast
 
 import numpy as np
 
@@ -160,17 +160,21 @@ class RuntimeOptions:
     report_stale: emit a ``stale`` reading for every superseded frame.
     latency_window: frames kept for the rolling p50/p99.
     grabbers: read each sensor in its own grabber thread (None: when there are two or more
-    sensors; one sensor is read in the loop's thread, the lowest-latency path).
+    sensors; one sensor is read in the loop's thread, the lowest-latency path, except while
+    warm-ups run: their rest is taken on a grabber thread, which a frame ends).
     workers: threads that run a step's per-sensor work (contact gate, sensor watch, depth
     stage) when two or more sensors' frames are ready together, the loop's own thread
     included (edge/runtime/workers.py); the batched predict and the readings stay in the
     loop's thread. None (auto): 2 when there are several sensors, two or more cores and the
     real clock (``time.monotonic_ns``), else 1 (one sensor always runs in one thread).
-    prewarm: at a slow cadence (frames 4 ms or more apart, e.g. a 60 fps sensor), wake
-    shortly before the next frame is due and run its gate and model once on the last frame,
-    results thrown away, so the frame finds caches warm (edge/runtime/prewarm.py): about half
-    the latency at 60 fps for one extra gate pass and model call of CPU per frame
-    (docs/benchmarks/cadence.md). Only with the runtime's real clock (``time.monotonic_ns``).
+    prewarm: warm-ups at a slow cadence (frames 4 ms or more apart, e.g. a 60 fps sensor):
+    wake shortly before the next frame is due and run its gate and model once on the last
+    frame, results thrown away, so the frame finds caches warm (edge/runtime/prewarm.py); a
+    frame that arrives meanwhile ends the rest or the warm-up at once. ``'auto'`` (default):
+    the runtime tries them with and without on this host and keeps them only where they pay
+    (edge/runtime/prewarm_decision.py; ``RuntimeStats.prewarm`` says what it found); True:
+    always; False: never. Only with the runtime's real clock (``time.monotonic_ns``) and
+    grabber threads (``grabbers=False`` turns them off: nothing could end the rest).
 
     Raises :class:`OptionsError` naming the field when deadline_ms is not a finite number > 0,
     threads < 1, latency_window < 1 or workers not 1 to 16, :class:`ArgumentTypeError` for a value of another type."""
@@ -181,7 +185,7 @@ class RuntimeOptions:
     report_stale: bool = True
     latency_window: int = field(default=600, metadata=check(ge=1))
     grabbers: bool | None = None
-    prewarm: bool = True
+    prewarm: Literal["auto", True, False] = "auto"
     workers: int | None = field(default=None, metadata=check(
         ge=1, le=MAX_BATCH, expected=f"None (auto) or 1 to {MAX_BATCH} threads (one per sensor at most is used)"))
 
@@ -217,8 +221,11 @@ def check_source(source: object, name: str) -> None:
 @dataclass
 class RuntimeStats:
     """Counters over a run; latency_ms[stage] = {'p50': ms, 'p99': ms}. ``prewarms``: warm-ups
-    run before a frame was due (``RuntimeOptions.prewarm``); ``prewarm_overran``: frames that
-    arrived while one still ran (they waited for it)."""
+    run before a frame was due (``RuntimeOptions.prewarm``); ``prewarm_abandoned``: warm-ups
+    given up for a frame that arrived; ``prewarm_overran``: frames that arrived while one still
+    ran (each waited at most for the part under way); ``prewarm``: whether warm-ups run and
+    why: ``'trying'`` (the runtime is measuring whether they pay), ``'on (...)'`` or
+    ``'off (...)'``."""
 
     readings: int = 0
     processed: int = 0
@@ -231,7 +238,9 @@ class RuntimeStats:
     background_mismatch: int = 0
     out_of_distribution: int = 0
     prewarms: int = 0
+    prewarm_abandoned: int = 0
     prewarm_overran: int = 0
+    prewarm: str = ""
     latency_ms: dict[str, dict[str, float]] = field(default_factory=dict)
 
     def as_dict(self) -> dict:

@@ -136,3 +136,20 @@ def test_stop_ends_a_thread_waiting_to_hand_over():
     g.stop(timeout_s=WAIT_S)
     assert all(not t.is_alive() for t in g._threads)
     assert src.reads <= 2  # it stopped instead of reading on
+
+
+def test_retire_hands_over_the_read_under_way_and_loses_nothing():
+    """After retire() the thread ends once it has handed over the read it was making; the
+    loop's thread then reads the source itself: every frame exactly once, in order."""
+    src = FakeCountingSource(6)
+    s = _S("a", src)
+    g = Grabbers([s], _clock)  # type: ignore[list-item]
+    got = [r.tf.index for _, r in g.take([s], WAIT_S)]  # type: ignore[union-attr]
+    g.retire()
+    assert g.retiring
+    while not g.retired():
+        got += [r.tf.index for _, r in g.take([s], WAIT_S)]  # type: ignore[union-attr]
+    g.stop()
+    while (tf := src.read()) is not None:
+        got.append(tf.index)
+    assert got == list(range(6))
