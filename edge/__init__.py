@@ -16,7 +16,8 @@ import importlib
 import warnings
 from typing import TYPE_CHECKING, Any
 
-from . import _moved
+# _cli_start first of the package: a Ctrl-C while the CLI starts exits 130, no traceback
+from . import _cli_start, _moved  # noqa: F401
 from .bundle.manifest import InputKind, Manifest, Precision, Variant
 from .bundle.store import Bundle, load_bundle, read_manifest, write_bundle
 from .errors import (
