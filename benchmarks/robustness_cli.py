@@ -10,6 +10,7 @@ the same probes.
 
 from __future__ import annotations
 
+import math
 import signal
 import subprocess
 import sys
@@ -95,4 +96,173 @@ def early_signal_cases(folder: Path, examples: int) -> Cases:
 CATEGORIES: list[tuple[str, str, Callable[[Path, int], Cases]]] = [
     ("early_signals", "signals at the CLI's first moments (SIGINT 0-0.3 s, SIGTERM, into bench and run)",
      early_signal_cases),
+]
+
+
+# =============================================================================== numeric arguments
+#: texts every numeric flag must refuse (or accept only inside its declared range)
+EXTREME_TEXTS = ("1e-300", "-1e-300", "1e300", "-1e300", "nan", "inf", "-inf", "-1", "0", str(10**30), str(-(10**30)),
+                 "1e3000", "0x10", "")
+
+
+def numeric_flags() -> list[tuple[str, str, object]]:
+    """(verb, flag, argparse action) of every numeric flag of every verb whose module imports
+    here (a verb needing a missing extra is left out): a flag whose type is not ``str``,
+    ``Path`` or a choice list and reads ``"1"`` as a number."""
+    import argparse
+    import importlib
+
+    from tactile_force.edge.cli import COMMANDS
+
+    out: list[tuple[str, str, object]] = []
+    for verb, (module_name, configure, _main, _help) in COMMANDS.items():
+        try:
+            module = importlib.import_module(module_name)
+        except ImportError:
+            continue
+        parser = argparse.ArgumentParser(prog=f"tactile-force {verb}")
+        getattr(module, configure)(parser)
+        for action in parser._actions:  # argparse keeps its options here
+            flags = [f for f in action.option_strings if f.startswith("--")]
+            if not flags or action.type in (None, str, Path) or action.choices is not None:
+                continue
+            try:
+                v = action.type("1")
+            except Exception:  # noqa: BLE001 - a non-numeric type refusing "1" (or a numeric one with a floor above 1)
+                v = 1
+            if isinstance(v, (int, float)) and not isinstance(v, bool):
+                out.append((verb, flags[0], action))
+    return out
+
+
+def probe_numeric_flag(verb: str, flag: str, action: object, text: str) -> Verdict:
+    """``tactile-force VERB FLAG TEXT`` as the parser reads it: refused (exit 2 naming the flag)
+    or accepted inside the flag's declared finite range; never a traceback."""
+    import argparse
+
+    chk = getattr(action.type, "check", None)  # type: ignore[attr-defined]
+    if chk is None:
+        return Verdict(Outcome.TRACEBACK, f"{verb} {flag}: no declared range (a bare int/float type)")
+    lo = chk.gt if chk.gt is not None else chk.ge
+    hi = chk.lt if chk.lt is not None else chk.le
+    if lo is None or hi is None or not (math.isfinite(lo) and math.isfinite(hi)):
+        return Verdict(Outcome.TRACEBACK, f"{verb} {flag}: range open at an end ({chk.range_text()})")
+    try:
+        v = action.type(text)  # type: ignore[attr-defined]
+    except (argparse.ArgumentTypeError, ValueError, TypeError):
+        rc, _out, err = _parse_only(verb, [flag, text])
+        if rc != 2 or flag not in err or "Traceback" in err:
+            return Verdict(Outcome.TRACEBACK, f"{verb} {flag} {text!r}: exit {rc}: {err[-200:]}")
+        return Verdict(Outcome.CLEAR, f"{verb} {flag} {text!r}: {err.strip()[-120:]}")
+    except Exception as exc:  # noqa: BLE001 - classified
+        return Verdict(Outcome.TRACEBACK, f"{verb} {flag} {text!r}: {type(exc).__name__}: {exc}"[:300])
+    if not (isinstance(v, (int, float)) and math.isfinite(v) and chk.in_range(v)):
+        return Verdict(Outcome.SILENT_WRONG, f"{verb} {flag} {text!r} accepted as {v!r} ({chk.range_text()})")
+    return Verdict(Outcome.ACCEPTED, f"{verb} {flag} {text!r} -> {v!r}")
+
+
+def _parse_only(verb: str, argv: list[str]) -> tuple[int, str, str]:
+    """The verb's parser on ``argv`` only (no work): (exit code, stdout, stderr)."""
+    import argparse
+    import contextlib
+    import importlib
+    import io
+
+    from tactile_force.edge.cli import COMMANDS
+
+    module_name, configure, _main, _help = COMMANDS[verb]
+    parser = argparse.ArgumentParser(prog=f"tactile-force {verb}")
+    getattr(importlib.import_module(module_name), configure)(parser)
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            parser.parse_known_args(argv)
+            rc = 0
+        except SystemExit as exc:
+            rc = exc.code if isinstance(exc.code, int) else 2
+    return rc, out.getvalue(), err.getvalue()
+
+
+def numeric_flag_cases(folder: Path, examples: int) -> Cases:
+    cases: list[tuple[str, Callable[[], Verdict]]] = []
+    for verb, flag, action in numeric_flags():
+        for text in EXTREME_TEXTS:
+            cases.append((f"{verb} {flag}", lambda v=verb, f=flag, a=action, t=text: probe_numeric_flag(v, f, a, t)))
+    return cases, ""
+
+
+def _api_case(call: Callable[[], object], names: tuple[str, ...]) -> Verdict:
+    from .harness.cases import refusal
+
+    try:
+        call()
+    except Exception as exc:  # noqa: BLE001 - classified
+        return refusal(exc, True, names=names)
+    return Verdict(Outcome.SILENT_WRONG, "accepted")
+
+
+def api_numeric_cases() -> list[tuple[str, Callable[[], object], tuple[str, ...]]]:
+    """Public constructors and options records at their numeric extremes: (what, call, names the error must hold)."""
+    import numpy as np
+    from tactile_force.edge import RuntimeOptions, VirtualDigitSource
+    from tactile_force.edge.sources import CameraSource, ReplayFolderSource
+
+    return [
+        ("ReplayFolderSource(fps=1e-300)", lambda: ReplayFolderSource(".", fps=1e-300), ("ReplayFolderSource.fps",)),
+        ("ReplayFolderSource(fps=1e300)", lambda: ReplayFolderSource(".", fps=1e300), ("ReplayFolderSource.fps",)),
+        ("CameraSource(fps=1e-300)", lambda: CameraSource(0, fps=1e-300), ("CameraSource.fps",)),
+        ("RuntimeOptions(latency_window=10**12)", lambda: RuntimeOptions(latency_window=10**12),
+         ("RuntimeOptions.latency_window",)),
+        ("RuntimeOptions(threads=10**9)", lambda: RuntimeOptions(threads=10**9), ("RuntimeOptions.threads",)),
+        ("RuntimeOptions(deadline_ms=1e300)", lambda: RuntimeOptions(deadline_ms=1e300),
+         ("RuntimeOptions.deadline_ms",)),
+        ("VirtualDigitSource(peak_n=(14, 3))", lambda: VirtualDigitSource(peak_n=(14.0, 3.0)),
+         ("VirtualDigitSource.peak_n",)),
+        ("VirtualDigitSource(fps=1e-300)", lambda: VirtualDigitSource(fps=1e-300), ("VirtualDigitSource.fps",)),
+        ("VirtualDigitSource(n_grasps=10**9)", lambda: VirtualDigitSource(n_grasps=10**9),
+         ("VirtualDigitSource.n_grasps",)),
+        ("VirtualDigitSource(lead_in_s=1e300)", lambda: VirtualDigitSource(lead_in_s=1e300),
+         ("VirtualDigitSource.lead_in_s",)),
+        ("VirtualDigitSource(seed=np.int64(-1))", lambda: VirtualDigitSource(seed=np.int64(-1)),
+         ("VirtualDigitSource.seed",)),
+    ]
+
+
+def cli_numeric_cases(folder: Path) -> list[tuple[list[str], str]]:
+    """The reported CLI cases, run whole: (argv, the flag the message must name); exit 2."""
+    return [
+        (["run", "--source", "virtual", "--fps", "1e-300", "--out", str(folder / "r.csv")], "--fps"),
+        (["bench", "--fps", "1e-300", "--out", str(folder / "bench")], "--fps"),
+        (["bench", "--cadence-frames", "1e300", "--out", str(folder / "bench")], "--cadence-frames"),
+        (["demo", "--seed", "-1", "--out", str(folder / "demo")], "--seed"),
+        (["synth", "--out", str(folder / "s"), "--n", "1e300"], "--n"),
+        (["record", "--every", "-5"], "--every"),
+    ]
+
+
+def cli_numeric_verdict(argv: list[str], flag: str, folder: Path) -> Verdict:
+    from .harness.cases import cli_verdict
+
+    before = sorted(p.name for p in folder.iterdir()) if folder.is_dir() else []
+    v = cli_verdict(argv, {2}, True, (flag,))
+    after = sorted(p.name for p in folder.iterdir()) if folder.is_dir() else []
+    if v.ok and after != before:
+        return Verdict(Outcome.SILENT_WRONG, f"{' '.join(argv)}: left {sorted(set(after) - set(before))}")
+    return v
+
+
+def numeric_api_cases(folder: Path, examples: int) -> Cases:
+    cases: list[tuple[str, Callable[[], Verdict]]] = []
+    for what, call, names in api_numeric_cases():
+        cases.append((what, lambda c=call, n=names: _api_case(c, n)))
+    for argv, flag in cli_numeric_cases(folder):
+        cases.append((" ".join(argv[:1] + argv[1:3]), lambda a=argv, f=flag: cli_numeric_verdict(a, f, folder)))
+    return cases, ""
+
+
+CATEGORIES += [
+    ("numeric_flags", "numeric flags of every verb at their extremes (1e-300, 1e300, nan, inf, -1, 10^30, ...)",
+     numeric_flag_cases),
+    ("numeric_api", "numeric arguments of the public constructors and options, and the reported CLI cases",
+     numeric_api_cases),
 ]

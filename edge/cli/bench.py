@@ -18,7 +18,8 @@ import sys
 from pathlib import Path
 
 from ..errors import TactileForceError
-from .args import non_negative_int, positive_float, positive_int
+from ..limits import BUDGET_MS, COUNT, FPS, PAUSE_S, READINGS, THREADS
+from .args import within
 
 
 class BenchInputError(TactileForceError):
@@ -45,20 +46,20 @@ def configure(p: argparse.ArgumentParser) -> None:
                                              "forces/force_N.txt, e.g. from record or synth): adds error vs truth")
     p.add_argument("--background", type=Path, help="with --data: the sensor's no-contact image (else learnt from "
                                                    "the first frames, as 'run' does)")
-    p.add_argument("--threads", type=positive_int, default=1, help="ONNX Runtime / OpenCV threads (default 1)")
-    p.add_argument("--budget-ms", type=positive_float, default=1.0,
+    p.add_argument("--threads", type=within(int, THREADS), default=1, help="ONNX Runtime / OpenCV threads (default 1)")
+    p.add_argument("--budget-ms", type=within(float, BUDGET_MS), default=1.0,
                    help="budget for the end-to-end total p99 in ms (default 1.0)")
-    p.add_argument("--frames", type=positive_int, default=1000,
+    p.add_argument("--frames", type=within(int, READINGS), default=1000,
                    help="readings measured back to back per bundle (default 1000)")
-    p.add_argument("--fps", type=positive_float, default=60.0,
+    p.add_argument("--fps", type=within(float, FPS), default=60.0,
                    help="the sensor's cadence: frames arriving per second per sensor (default 60, a DIGIT's); the "
                         "verdict is judged at it")
-    p.add_argument("--cadence-frames", type=positive_int, default=300,
+    p.add_argument("--cadence-frames", type=within(int, READINGS), default=300,
                    help="readings measured at --fps per bundle (default 300: ~5.5 s per bundle at 60 fps, warm-up "
                         "included; >= 100 for a p99 verdict)")
-    p.add_argument("--repeats", type=positive_int, default=3,
+    p.add_argument("--repeats", type=within(int, COUNT), default=3,
                    help="attempts at most; a new one only after one over budget on a busy machine (default 3)")
-    p.add_argument("--pause-s", type=non_negative_int, default=30, help="seconds before a repeat (default 30)")
+    p.add_argument("--pause-s", type=within(int, PAUSE_S), default=30, help="seconds before a repeat (default 30)")
     p.add_argument("--out", type=Path, default=Path("tactile_force_bench"),
                    help="output folder (default tactile_force_bench); written whole when the bench ends")
     p.add_argument("--force", action="store_true", help="replace --out when it holds an earlier bench result")

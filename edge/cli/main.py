@@ -106,6 +106,21 @@ def _exit_code(exc: BaseException) -> tuple[int, str]:
                "(please report it; rerun with --debug for the traceback)")
 
 
+def flag_named(message: str, parser: argparse.ArgumentParser) -> str:
+    """``message`` led by the flag the user typed when it names a parameter the flag sets
+    (``VirtualDigitSource.seed=-1: ...`` -> ``--seed: VirtualDigitSource.seed=-1: ...``): an
+    error from a constructor or options record the verb built from the flags names the flag."""
+    import re
+
+    for action in parser._actions:  # argparse keeps its options here; no public accessor
+        flags = [f for f in action.option_strings if f.startswith("--")]
+        if not flags or action.dest in ("help", "force") or any(f in message for f in flags):
+            continue
+        if re.search(rf"\b\w+\.{re.escape(action.dest)}\b(?![.\w])", message):
+            return f"{flags[0]}: {message}"
+    return message
+
+
 class Interrupted(KeyboardInterrupt):
     """SIGINT or SIGTERM arrived while a command ran; ``signum`` says which."""
 
@@ -219,7 +234,7 @@ def _run(argv: list[str], signals: _Signals) -> int:
         if debug:
             raise
         code, message = _exit_code(exc)
-        print(f"tactile-force {name}: {message}", file=sys.stderr)
+        print(f"tactile-force {name}: {flag_named(message, parser)}", file=sys.stderr)
         return code
     if signals.received is not None:  # the verb caught the interrupt itself: never a success
         return signals.code()
