@@ -15,6 +15,7 @@ import signal
 import subprocess
 import sys
 import time
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 
@@ -265,4 +266,128 @@ CATEGORIES += [
      numeric_flag_cases),
     ("numeric_api", "numeric arguments of the public constructors and options, and the reported CLI cases",
      numeric_api_cases),
+]
+
+
+# =============================================================================== old names
+_TOPS = {"edge": "tactile_force.edge", "export": "tactile_force.export",
+         "firmware_bridge": "tactile_force.firmware_bridge"}
+
+
+def _module_of(path: str) -> str:
+    top, rest = path.split("/", 1)
+    name = _TOPS[top] + "." + rest[:-3].replace("/", ".")
+    return name.removesuffix(".__init__")
+
+
+def _public_names(source: str) -> set[str]:
+    """The names a module's source makes public: its ``__all__``, else its top-level
+    definitions and assignments not starting with ``_``."""
+    import ast
+
+    try:
+        tree = ast.parse(source)
+    except SyntaxError:
+        return set()
+    names: set[str] = set()
+    for node in tree.body:
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+            names.add(node.name)
+        elif isinstance(node, (ast.Assign, ast.AnnAssign)):
+            for target in node.targets if isinstance(node, ast.Assign) else [node.target]:
+                if isinstance(target, ast.Name) and target.id == "__all__":
+                    try:
+                        return {str(n) for n in ast.literal_eval(node.value)}  # type: ignore[arg-type]
+                    except ValueError:
+                        pass
+                elif isinstance(target, ast.Name):
+                    names.add(target.id)
+    return {n for n in names if not n.startswith("_")}
+
+
+def history_names(repo: Path) -> dict[str, set[str]]:
+    """Every module of the package that ever existed (git history of ``repo``), with every
+    public name any version of it had. Empty when ``repo`` has no git history."""
+    log = subprocess.run(["git", "-C", str(repo), "log", "--format=C %H", "--name-status", "-M", "--", *_TOPS],
+                         capture_output=True, text=True)
+    if log.returncode != 0:
+        return {}
+    wanted: list[tuple[str, str]] = []  # (rev:path, module)
+    commit = ""
+    for line in log.stdout.splitlines():
+        if line.startswith("C "):
+            commit = line[2:]
+            continue
+        parts = line.split("\t")
+        if len(parts) < 2:
+            continue
+        status, paths = parts[0], parts[1:]
+        gone = status == "D" or status.startswith("R")
+        path = paths[0] if gone else paths[-1]
+        if path.endswith(".py") and not path.endswith("__main__.py"):
+            wanted.append((f"{commit}^:{path}" if gone else f"{commit}:{path}", _module_of(path)))
+    batch = subprocess.run(["git", "-C", str(repo), "cat-file", "--batch"],
+                           input="".join(f"{w}\n" for w, _ in wanted).encode(), capture_output=True)
+    out: dict[str, set[str]] = {}
+    data = batch.stdout
+    pos = 0
+    for _, module in wanted:  # each answer: "<sha> blob <size>\n<bytes>\n", or "<rev> missing\n"
+        header_end = data.index(b"\n", pos)
+        header = data[pos:header_end].split()
+        pos = header_end + 1
+        if len(header) < 3 or header[1] != b"blob":
+            continue
+        size = int(header[2])
+        body = data[pos:pos + size].decode("utf-8", "replace")
+        pos += size + 1
+        out.setdefault(module, set()).update(_public_names(body))
+    return out
+
+
+def old_name_verdict(module: str, name: str | None) -> Verdict:
+    """``import module`` (``name`` None) or ``from module import name`` now: present, or a
+    DeprecationWarning naming the new home, or an ImportError naming what replaced it."""
+    import importlib
+
+    from tactile_force.edge import _moved
+
+    key = module.removeprefix("tactile_force.")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            mod = importlib.import_module(module)
+            if name is not None:
+                getattr(mod, name)
+        except ImportError as exc:
+            from tactile_force.edge.errors import MissingExtraError
+
+            if isinstance(exc, MissingExtraError) or getattr(exc, "name", "") in ("mcap", "cyclonedds", "foxglove"):
+                return Verdict(Outcome.ACCEPTED, f"{module}: needs an extra ({exc})")
+            replaced = _moved.GONE_MODULES.get(key) or (_moved.GONE.get(key, {}).get(name or "") if name else None)
+            if replaced and replaced in str(exc):
+                return Verdict(Outcome.CLEAR, f"{module}.{name or ''}: {exc}"[:200])
+            return Verdict(Outcome.TRACEBACK, f"{module} {name or ''}: {type(exc).__name__}: {exc}"[:300])
+        except AttributeError as exc:
+            return Verdict(Outcome.TRACEBACK, f"{module}.{name}: {exc}"[:300])
+    said = [str(w.message) for w in caught if issubclass(w.category, DeprecationWarning)]
+    return Verdict(Outcome.ACCEPTED, f"{module}{'.' + name if name else ''}: {said[-1] if said else 'present'}"[:200])
+
+
+def old_name_cases(folder: Path, examples: int) -> Cases:
+    from .harness.paths import require_repo
+
+    names = history_names(require_repo("the old-names category"))
+    if not names:
+        return [], "not run: no git history"
+    cases: list[tuple[str, Callable[[], Verdict]]] = []
+    for module in sorted(names):
+        cases.append((module, lambda m=module: old_name_verdict(m, None)))
+        for name in sorted(names[module]):
+            cases.append((f"{module}.{name}", lambda m=module, n=name: old_name_verdict(m, n)))
+    return cases, "every module path and public name in the git history"
+
+
+CATEGORIES += [
+    ("old_names", "old module paths and public names from the git history (import works, warns, or names the "
+                  "replacement)", old_name_cases),
 ]

@@ -44,3 +44,10 @@ def float_in(low: float, high: float, *, low_open: bool = False, high_open: bool
     """argparse type: a finite number in the range ``low..high`` (open at an end when asked)."""
     return within(float, Check(gt=low if low_open else None, ge=None if low_open else low,
                                lt=high if high_open else None, le=None if high_open else high))
+
+
+#: argparse types of earlier versions, bounded only below (the CLI's flags use :func:`within`).
+positive_int = int_at_least(1, 2**63 - 1)
+non_negative_int = int_at_least(0, 2**63 - 1)
+positive_float = within(float, Check(gt=0, le=1.7976931348623157e308))
+finite_float = within(float, Check(ge=-1.7976931348623157e308, le=1.7976931348623157e308))
