@@ -27,6 +27,8 @@ class BenchInputError(TactileForceError):
 
 
 def configure(p: argparse.ArgumentParser) -> None:
+    from tactile_force.benchmarks.harness.stats import MIN_P99_READINGS as FLOOR
+
     p.formatter_class = argparse.RawDescriptionHelpFormatter
     p.description = (
         "Measure bundles through the runtime on THIS host, twice: back to back (frames there when asked for) and at\n"
@@ -37,7 +39,7 @@ def configure(p: argparse.ArgumentParser) -> None:
         "  tactile-force bench --bundle B --data LABELLED_DIR --background NO_CONTACT.png   # + error (RE, MAE)\n"
         "  tactile-force bench --fps 30 --cadence-frames 1000   # a 30 fps sensor, 1000 readings at it (~34 s each)\n"
         "At 60 fps the default 300 cadence readings (and a warm-up) take ~5.5 s per bundle, on top of the\n"
-        "back-to-back run; a p99 verdict needs >= 100 readings.\n"
+        f"back-to-back run; a p99 verdict needs >= {FLOOR} readings at the cadence (back to back is not judged).\n"
         "Writes report.json (docs/bench.md), report.md and pareto.png (error vs p99 at the cadence) to --out.\n"
         "Exit 0 every bundle within budget, 1 any over budget or machine busy (no verdict), 2 bad input.")
     p.add_argument("--bundle", nargs="+", metavar="B", help="bundle folder(s) to measure (default: every shipped "
@@ -56,7 +58,7 @@ def configure(p: argparse.ArgumentParser) -> None:
                         "verdict is judged at it")
     p.add_argument("--cadence-frames", type=within(int, READINGS), default=300,
                    help="readings measured at --fps per bundle (default 300: ~5.5 s per bundle at 60 fps, warm-up "
-                        "included; >= 100 for a p99 verdict)")
+                        f"included; >= {FLOOR} for a p99 verdict)")
     p.add_argument("--repeats", type=within(int, COUNT), default=3,
                    help="attempts at most; a new one only after one over budget on a busy machine (default 3)")
     p.add_argument("--pause-s", type=within(int, PAUSE_S), default=30, help="seconds before a repeat (default 30)")
