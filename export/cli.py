@@ -48,7 +48,8 @@ def _opset(text: str) -> int:
     return value
 
 
-_opset.check = Check(ge=17, le=1000)  # type: ignore[attr-defined] - the newest opset onnx knows bounds it further
+# the range tests read; the newest opset the installed onnx knows bounds it further
+_opset.check = Check(ge=17, le=1000)  # type: ignore[attr-defined]
 
 
 # ---------------------------------------------------------------- export
