@@ -4,8 +4,9 @@ statistics floor and its warm-up misses.
 
 Each entry of :data:`CATEGORIES` is ``(key, name, build)``; ``build(folder, examples)``
 returns ``(cases, note)`` with ``cases`` ``(what, probe)`` pairs run by
-:func:`benchmarks.robustness_inputs.run_cases`. tests/robustness/test_cli_promises.py runs
-the same probes.
+:func:`benchmarks.robustness_inputs.run_cases`. The tests run the same probes:
+tests/robustness/test_cli_signals_early.py, tests/robustness/test_numeric_arguments.py,
+tests/edge/test_moved.py, tests/benchmarks/test_bench_statistics.py.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ import warnings
 from collections.abc import Callable
 from pathlib import Path
 
-from .harness.cases import Outcome, Verdict
+from .harness.cases import Outcome, Verdict, run_cli
 
 Cases = tuple[list[tuple[str, Callable[[], Verdict]]], str]
 
@@ -390,4 +391,46 @@ def old_name_cases(folder: Path, examples: int) -> Cases:
 CATEGORIES += [
     ("old_names", "old module paths and public names from the git history (import works, warns, or names the "
                   "replacement)", old_name_cases),
+]
+
+
+# =============================================================================== bench statistics
+def bench_stats_verdict(folder: Path, fps: float, cadence_frames: int, frames: int) -> Verdict:
+    """``bench --fps F --cadence-frames C --frames N``: the readings at the cadence and the
+    missed frames add up to C (warm-up frames never count as missed), and the verdict is
+    TOO_FEW_READINGS exactly when fewer than MIN_P99_READINGS readings were measured at the cadence."""
+    from tactile_force.benchmarks.bench import REPORT_JSON, read_report
+    from tactile_force.edge.scene import default_bundle_path
+
+    from .harness.stats import MIN_P99_READINGS
+
+    out = folder / f"bench_{fps:g}_{cadence_frames}_{frames}"
+    argv = ["bench", "--bundle", str(default_bundle_path()), "--fps", f"{fps:g}", "--cadence-frames",
+            str(cadence_frames), "--frames", str(frames), "--repeats", "1", "--budget-ms", "1000", "--out", str(out)]
+    what = " ".join(argv[3:9])
+    rc, stdout, stderr = run_cli(argv)
+    if "Traceback" in stdout + stderr or rc not in (0, 1):
+        return Verdict(Outcome.TRACEBACK, f"{what}: exit {rc}: {stderr[-200:]}")
+    b = read_report(out / REPORT_JSON).bundles[0]
+    if b.cadence is None:
+        return Verdict(Outcome.SILENT_WRONG, f"{what}: no cadence record")
+    n, missed = b.cadence.total_ms.n, b.cadence.missed
+    if n + missed != cadence_frames:
+        return Verdict(Outcome.SILENT_WRONG, f"{what}: n {n} + missed {missed} != {cadence_frames} (warm-up counted)")
+    few = n < MIN_P99_READINGS
+    if (b.verdict == "TOO_FEW_READINGS") != few:
+        return Verdict(Outcome.SILENT_WRONG if not few else Outcome.VALID_REFUSED,
+                       f"{what}: verdict {b.verdict} from {n} readings at the cadence")
+    return Verdict(Outcome.CLEAR if few else Outcome.ACCEPTED, f"{what}: n {n}, missed {missed}, {b.verdict}")
+
+
+def bench_stats_cases(folder: Path, examples: int) -> Cases:
+    runs = [(10_000.0, 100, 5), (200.0, 120, 99), (200.0, 99, 100)]
+    return [(f"bench --fps {f:g} --cadence-frames {c} --frames {n}",
+             lambda f=f, c=c, n=n: bench_stats_verdict(folder, f, c, n)) for f, c, n in runs], ""
+
+
+CATEGORIES += [
+    ("bench_statistics", "bench statistics (warm-up frames never missed; too few readings: one rule at the cadence)",
+     bench_stats_cases),
 ]
