@@ -70,7 +70,7 @@ class OnnxForceModel:
                nonempty=True)
         expect(threads, int, "OnnxForceModel.threads", "an integer in [1, 1024] (ONNX Runtime intra-op threads)",
                **bounds(THREADS))
-        expect(warmup, int, "OnnxForceModel.warmup", "an integer >= 0 (warm-up runs at load)", ge=0)
+        expect(warmup, int, "OnnxForceModel.warmup", "an integer in [0, 10000] (warm-up runs at load)", ge=0, le=10_000)
         expect(calibrate, bool, "OnnxForceModel.calibrate")
         self.bundle = bundle if isinstance(bundle, Bundle) else load_bundle(bundle)
         m = self.bundle.manifest

@@ -103,7 +103,7 @@ class CameraSource(FrameSource):
         expect(fourcc, tuple[str, ...], "CameraSource.fourcc", "a tuple of FOURCC codes such as ('MJPG', 'YUYV')")
         check_shape(shape, "CameraSource.shape", optional=False)
         expect(size, tuple[int, int] | None, "CameraSource.size", "(width, height) in pixels >= 1, or None", ge=1)
-        expect(timeout_s, float, "CameraSource.timeout_s", "a number of seconds > 0", gt=0)
+        expect(timeout_s, float, "CameraSource.timeout_s", "a number of seconds in (0, 3600]", gt=0, le=3600)
         expect(max_failures, int, "CameraSource.max_failures", ge=1)
         expect(max_corrupt, int, "CameraSource.max_corrupt", ge=1)
         expect(name, str, "CameraSource.name", nonempty=True)

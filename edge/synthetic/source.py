@@ -69,7 +69,7 @@ class VirtualDigitSource(FrameSource):
         expect(start_ns, int | None, f"{c}.start_ns", "monotonic ns, or None (now)")
         expect(name, str, f"{c}.name", nonempty=True)
         expect(options, VirtualDigitOptions | None, f"{c}.options", "a VirtualDigitOptions or None (the defaults)")
-        expect(render_ahead, int, f"{c}.render_ahead", "frames >= 0 (0 renders inside read())", ge=0)
+        expect(render_ahead, int, f"{c}.render_ahead", "frames in [0, 1000] (0 renders inside read())", ge=0, le=1000)
         self.name = name
         opts = options or VirtualDigitOptions()
         from dataclasses import replace

@@ -28,7 +28,7 @@ BAD_SCENES = {
     "gate threshold a string": ('[gate]\nthreshold = "high"\n' + SENSOR,
                                 r"gate\.threshold: expected a number > 0 and < 255, got 'high'"),
     "gate background_frames a string": ('[gate]\nbackground_frames = "5"\n' + SENSOR,
-                                        r"gate\.background_frames: expected an integer >= 1, got '5'"),
+                                        r"gate\.background_frames: expected an integer in \[1, 10000\], got '5'"),
     "runtime not a table": ("runtime = 5\n" + SENSOR, r"runtime: expected a table, got 5"),
     "sensor a list of numbers": ("sensor = [1, 2]\n", r"sensor\[0\]: expected a table, got 1"),
     "fps inf": (SENSOR + "fps = inf\n", r"sensor\[0\]\.fps: expected a finite number in \[0\.01, 10000\], got inf"),
