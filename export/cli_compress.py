@@ -34,7 +34,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-augment", action="store_true", help="no LED gain/offset, noise and shift augmentation")
     parser.add_argument("--threads", type=within(int, THREADS), default=None,
                         help="torch threads for training (default: all cores)")
-    parser.add_argument("--max-vs-teacher-re", type=float_in(0.0, 1000.0, low_open=True), default=0.25,
+    parser.add_argument("--max-vs-teacher-re", type=float_in(0.0, 1e9, low_open=True), default=0.25,
                         help="largest RE against the teacher (held-out unlabelled frames) a student may have to be "
                              "written (default 0.25); when none is within it, no bundle is written (exit code 1)")
     parser.add_argument("--force", action="store_true",

@@ -27,7 +27,9 @@ def within(kind: type[int] | type[float], chk: Check) -> Callable[[str], Any]:
             v: int | float = int(text) if kind is int else float(text)
         except ValueError:
             raise argparse.ArgumentTypeError(f"{text!r} is not {'an integer' if kind is int else 'a number'}") from None
-        if (isinstance(v, float) and not math.isfinite(v)) or not chk.in_range(v):
+        if isinstance(v, float) and not math.isfinite(v):
+            raise argparse.ArgumentTypeError(f"{text}: expected a finite {want.removeprefix('a ')}")
+        if not chk.in_range(v):
             raise argparse.ArgumentTypeError(f"{text}: expected {want}")
         return v
 

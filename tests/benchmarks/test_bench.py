@@ -106,7 +106,7 @@ def test_the_cadence_record_round_trips_and_an_older_report_still_reads():
 
 
 @pytest.mark.parametrize("value, expected", [("0", "expected a number in [0.01, 10000]"),
-                                             ("nan", "expected a number in [0.01, 10000]"),
+                                             ("nan", "expected a finite number in [0.01, 10000]"),
                                              ("-60", "expected a number in [0.01, 10000]"),
                                              ("1e-300", "expected a number in [0.01, 10000]"),
                                              ("x", "'x' is not a number")])

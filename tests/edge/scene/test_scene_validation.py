@@ -189,7 +189,7 @@ def test_vga_video_exits_2_with_a_message(tmp_path, rgb_bundle, capsys):
     (["demo", "--threads", "two"], "argument --threads: 'two' is not an integer"),
     (["run", "--scene", "x.toml", "--max-frames", "-1"], "expected an integer in [1, 1000000000000]"),
     (["run", "--scene", "x.toml", "--max-frames", "0"], "expected an integer in [1, 1000000000000]"),
-    (["run", "--source", "virtual", "--fps", "inf"], "expected a number in [0.01, 10000]"),
+    (["run", "--source", "virtual", "--fps", "inf"], "expected a finite number in [0.01, 10000]"),
 ])
 def test_bad_flags_exit_2_with_a_clear_line(argv, words, capsys):
     assert cli_main(argv) == 2
