@@ -1022,6 +1022,19 @@ def run_catalogue(examples: int = 100, log: Callable[[str], None] = print) -> li
                 t.add(Verdict(Outcome.TRACEBACK, f"no cases: {type(exc).__name__}: {exc}"[:300]))
                 continue
             i19.run_cases(cases, t.add)
+
+        from . import robustness_cli as cli  # the CLI's own promises: signals, numbers, old names, bench statistics
+
+        for _key, name, build_cli in cli.CATEGORIES:
+            t = category(name)
+            clifolder = base / f"cli_{_key}"
+            clifolder.mkdir()
+            try:
+                cases, t.note = build_cli(clifolder, examples)
+            except Exception as exc:  # noqa: BLE001 - classified, never propagated
+                t.add(Verdict(Outcome.TRACEBACK, f"no cases: {type(exc).__name__}: {exc}"[:300]))
+                continue
+            i19.run_cases(cases, t.add)
     return tallies
 
 

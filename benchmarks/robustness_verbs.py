@@ -50,6 +50,7 @@ from .harness.cases import (
     with_timeout,
     worst,
 )
+from .harness.stats import MIN_P99_READINGS
 from .robustness_inputs import TF_CLI, digest, guarded, mcap_replay, tiny_checkpoint
 
 Case = tuple[str, Callable[[], Verdict]]
@@ -59,7 +60,7 @@ Cases = tuple[list[Case], str]
 STOP_S = 120.0
 START_S = 180.0
 #: readings a p99 verdict needs (the package's floor; the cases try both sides of it)
-FLOOR = 100
+FLOOR = MIN_P99_READINGS  # the one definition of "too few" (benchmarks/harness/stats.py)
 #: the environment variable a scene names and nobody sets
 UNSET_VAR = "TF_ROBUSTNESS_UNSET_PATH"
 

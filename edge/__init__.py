@@ -13,10 +13,10 @@ runtime never loads the depth stage, the virtual DIGIT or a device library.
 from __future__ import annotations
 
 import importlib
-import warnings
 from typing import TYPE_CHECKING, Any
 
-from . import _moved
+# _cli_start first of the package: a Ctrl-C while the CLI starts exits 130, no traceback
+from . import _cli_start, _moved  # noqa: F401
 from .bundle.manifest import InputKind, Manifest, Precision, Variant
 from .bundle.store import Bundle, load_bundle, read_manifest, write_bundle
 from .errors import (
@@ -53,31 +53,10 @@ _LAZY = {
     "ForceInterval": "bundle.interval", "AuthorsDataset": "data.dataset",
 }
 
-#: names earlier versions exported here -> where they live now (imported with a DeprecationWarning)
-_LEFT = {
-    "DEPTH_VARIANTS": "bundle.manifest", "PRECISIONS": "bundle.manifest", "VARIANTS": "bundle.manifest",
-    "sha256_file": "bundle.store", "open_v4l2": "sources", "plan_stages": "runtime",
-    "fit_interval": "fitting.interval", "AuthorsDatasetWriter": "data.dataset", "Sample": "data.dataset",
-    "ErrorStats": "data.metrics", "error_report": "data.metrics", "error_stats": "data.metrics",
-    "relative_error": "data.metrics",
-    "DepthOptions": "depth", "DepthResult": "depth", "DepthStage": "depth", "MaxDeformationBaseline": "depth",
-    "NormalLUT": "depth",
-    "ContactSpec": "synthetic", "DatasetOptions": "synthetic", "DatasetSummary": "synthetic",
-    "IndenterSplit": "synthetic", "SyntheticFrame": "synthetic", "VirtualDigit": "synthetic",
-    "VirtualDigitOptions": "synthetic", "generate_dataset": "synthetic", "indenter_split": "synthetic",
-    "paper_split": "synthetic", "split_ids": "synthetic",
-}
-
-
 def __getattr__(name: str) -> Any:
     module = _LAZY.get(name)
-    if module is None:
-        module = _LEFT.get(name)
-        if module is None:
-            raise AttributeError(f"module 'tactile_force.edge' has no attribute {name!r}")
-        warnings.warn(f"tactile_force.edge.{name}: import it from tactile_force.edge.{module}", DeprecationWarning,
-                      stacklevel=2)
-        return getattr(importlib.import_module(f".{module}", __name__), name)
+    if module is None:  # a name earlier versions exported here: its new home, with a DeprecationWarning
+        return _moved.old_name(__name__, name)
     value = getattr(importlib.import_module(f".{module}", __name__), name)
     globals()[name] = value
     return value

@@ -9,26 +9,36 @@ import argparse
 import sys
 from pathlib import Path
 
-from tactile_force.edge.cli.args import float_in, int_at_least, positive_float, positive_int
+from tactile_force.edge.cli.args import float_in, int_at_least, within
+from tactile_force.edge.limits import READINGS
+from tactile_force.edge.typed_json import Check
 
 VARIANT_HELP = ("rgbmod (RGB, multi-level head), d (depth, plain ResNet-18), dmod (depth, multi-level head), "
                 "rgbmod+d (RGB and depth branches)")
 
 
+_INPUT_SCALE = Check(gt=0, le=1)
+
+
 def _fraction(text: str) -> float:
-    """'1/4' or '0.25' -> 0.25."""
+    """'1/4' or '0.25' -> 0.25, a scale in (0, 1]."""
     try:
         if "/" in text:
             num, den = text.split("/", 1)
-            return float(num) / float(den)
-        return float(text)
+            v = float(num) / float(den)
+        else:
+            v = float(text)
     except (ValueError, ZeroDivisionError):
         raise argparse.ArgumentTypeError(f"{text!r} is not a number or a fraction like 1/4") from None
+    return float(within(float, _INPUT_SCALE)(repr(v)))
+
+
+_fraction.check = _INPUT_SCALE  # type: ignore[attr-defined]
 
 
 def _opset(text: str) -> int:
     """argparse type: an ONNX opset from 17 to the newest one the installed onnx package knows."""
-    value = int_at_least(17)(text)
+    value = int(int_at_least(17, 1000)(text))
     import onnx
 
     newest = onnx.defs.onnx_opset_version()
@@ -36,6 +46,10 @@ def _opset(text: str) -> int:
         raise argparse.ArgumentTypeError(f"{value}: the installed onnx {onnx.__version__} knows opsets up to {newest}; "
                                          "expected 17..{newest} (default 18)".replace("{newest}", str(newest)))
     return value
+
+
+# the range tests read; the newest opset the installed onnx knows bounds it further
+_opset.check = Check(ge=17, le=1000)  # type: ignore[attr-defined]
 
 
 # ---------------------------------------------------------------- export
@@ -57,14 +71,15 @@ def configure_export(p: argparse.ArgumentParser) -> None:
     p.add_argument("checkpoint", type=Path, help="trained weights (.pth / .pth.tar): the authors' format or ours")
     p.add_argument("--out", required=True, type=Path, help="bundle folder to create")
     p.add_argument("--variant", help=f"model variant: {VARIANT_HELP}. Required for the authors' checkpoints")
-    p.add_argument("--width", type=positive_float,
+    p.add_argument("--width", type=float_in(0.0, 16.0, low_open=True),
                    help="channel width multiplier of a compact model (default 1.0 or the file's)")
     p.add_argument("--input-scale", type=_fraction,
                    help="network input scale 1/k, e.g. 1/4 -> 80 x 60 (default 1 or the file's)")
     p.add_argument("--parity-data", type=Path,
                    help="frames for the torch-vs-ONNX check: a dataset in the authors' layout (images/N.png, "
                         "filt_img_depth/, forces/) or a folder of PNGs. Default: random frames (noted in the manifest)")
-    p.add_argument("--tolerance", type=positive_float, default=1e-4, help="parity tolerance in N (default 1e-4)")
+    p.add_argument("--tolerance", type=float_in(0.0, 1000.0, low_open=True), default=1e-4,
+                   help="parity tolerance in N (default 1e-4)")
     p.add_argument("--opset", type=_opset, default=18,
                    help="ONNX opset, 17 up to the newest the installed onnx knows (default 18); the manifest records "
                         "the opset the graph really declares")
@@ -136,14 +151,14 @@ def configure_quantize(p: argparse.ArgumentParser) -> None:
                    help="activation range calibration (default minmax)")
     p.add_argument("--percentile", type=float_in(0.0, 100.0, low_open=True), default=99.999,
                    help="percentile for --method percentile (0 < p <= 100)")
-    p.add_argument("--bins", type=int, default=2048,
+    p.add_argument("--bins", type=within(int, Check(ge=2, le=1_000_000)), default=2048,
                    help="histogram bins for entropy/percentile (default 2048; entropy gets slow with more)")
     p.add_argument("--per-tensor", action="store_true", help="one weight scale per tensor instead of per channel")
     p.add_argument("--keep-float", nargs="+", default=[], metavar="NODE",
                    help="node names to leave in float (see 'tactile-force bundle show --nodes')")
-    p.add_argument("--min-frames", type=positive_int, default=10,
+    p.add_argument("--min-frames", type=within(int, READINGS), default=10,
                    help="refuse calibration with fewer frames (>= 1, default 10)")
-    p.add_argument("--max-frames", type=positive_int, default=500,
+    p.add_argument("--max-frames", type=within(int, READINGS), default=500,
                    help="use at most this many calibration frames (>= 1, default 500; there is no 'unlimited')")
     p.add_argument("--background", type=Path,
                    help="no-contact frame of the calibration frames' sensor: records their statistics in the "

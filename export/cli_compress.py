@@ -6,8 +6,9 @@ import argparse
 import sys
 from pathlib import Path
 
-from tactile_force.edge.cli.args import positive_float, positive_int
+from tactile_force.edge.cli.args import float_in, within
 from tactile_force.edge.errors import TactileForceError
+from tactile_force.edge.limits import BUDGET_MS, COUNT, READINGS, SEED, THREADS
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -20,18 +21,20 @@ def configure(parser: argparse.ArgumentParser) -> None:
                                                      "students; a rerun resumes from it), compress.json")
     parser.add_argument("--labels", default=None,
                         help="labelled frames (authors' layout): half mixed into training, half for evaluation")
-    parser.add_argument("--budget-ms", type=positive_float, default=1.0,
+    parser.add_argument("--budget-ms", type=within(float, BUDGET_MS), default=1.0,
                         help="p99 budget of one batch-2 inference on this host, ms (default 1.0)")
-    parser.add_argument("--seed", type=int, default=0, help="seed for splits, training and augmentation")
+    parser.add_argument("--seed", type=within(int, SEED), default=0, help="seed for splits, training and augmentation")
     parser.add_argument("--ladder", default=None,
                         help="students as WIDTHxK list, e.g. 0.125x8,0.25x4 "
                              "(default: 0.125x8,0.25x4,0.5x4,0.25x2)")
-    parser.add_argument("--epochs", type=int, default=30, help="training epochs per student (default 30)")
-    parser.add_argument("--max-frames", type=int, default=6000, help="unlabelled frames used at most (default 6000)")
+    parser.add_argument("--epochs", type=within(int, COUNT), default=30,
+                        help="training epochs per student (default 30)")
+    parser.add_argument("--max-frames", type=within(int, READINGS), default=6000,
+                        help="unlabelled frames used at most (default 6000)")
     parser.add_argument("--no-augment", action="store_true", help="no LED gain/offset, noise and shift augmentation")
-    parser.add_argument("--threads", type=positive_int, default=None,
+    parser.add_argument("--threads", type=within(int, THREADS), default=None,
                         help="torch threads for training (default: all cores)")
-    parser.add_argument("--max-vs-teacher-re", type=float, default=0.25,
+    parser.add_argument("--max-vs-teacher-re", type=float_in(0.0, 1e9, low_open=True), default=0.25,
                         help="largest RE against the teacher (held-out unlabelled frames) a student may have to be "
                              "written (default 0.25); when none is within it, no bundle is written (exit code 1)")
     parser.add_argument("--force", action="store_true",

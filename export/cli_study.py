@@ -12,7 +12,9 @@ import shlex
 import sys
 from pathlib import Path
 
-from tactile_force.edge.cli.args import non_negative_int, positive_float, positive_int
+from tactile_force.edge.cli.args import float_in, within
+from tactile_force.edge.limits import BUDGET_MS, COUNT, READINGS, THREADS
+from tactile_force.edge.typed_json import Check
 
 
 def configure(p: argparse.ArgumentParser) -> None:
@@ -33,18 +35,22 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", type=Path, default=Path("tactile_force_study"),
                    help="output folder (default tactile_force_study); written whole when the study ends")
     p.add_argument("--force", action="store_true", help="replace --out when it holds an earlier study result")
-    p.add_argument("--budget-ms", type=positive_float, default=1.0, help="p99 budget for the recommendation (ms)")
-    p.add_argument("--threads", type=positive_int, default=1, help="ONNX Runtime / OpenCV threads (default 1)")
-    p.add_argument("--frames", type=positive_int, default=500, help="latency readings per configuration")
+    p.add_argument("--budget-ms", type=within(float, BUDGET_MS), default=1.0,
+                   help="p99 budget for the recommendation (ms)")
+    p.add_argument("--threads", type=within(int, THREADS), default=1, help="ONNX Runtime / OpenCV threads (default 1)")
+    p.add_argument("--frames", type=within(int, READINGS), default=500, help="latency readings per configuration")
     p.add_argument("--quick", action="store_true", help="a small grid (4 configurations, 3 sensitivity nodes)")
-    p.add_argument("--max-configs", type=non_negative_int, help="at most this many configurations besides fp32")
-    p.add_argument("--sensitivity-nodes", type=int, default=None,
+    p.add_argument("--max-configs", type=within(int, Check(ge=0, le=COUNT.le)),
+                   help="at most this many configurations besides fp32")
+    p.add_argument("--sensitivity-nodes", type=within(int, Check(ge=0, le=COUNT.le)), default=None,
                    help="rank only the first N Conv nodes (default all; --quick: 3; 0: no ranking)")
-    p.add_argument("--calib-frames", type=positive_int, default=200, help="calibration frames at most (default 200)")
+    p.add_argument("--calib-frames", type=within(int, READINGS), default=200,
+                   help="calibration frames at most (default 200)")
     p.add_argument("--keep-all", action="store_true", help="keep every configuration's bundle, not only the front")
     p.add_argument("--variant", help="checkpoint only: the model variant (rgbmod, d, dmod, rgbmod+d)")
-    p.add_argument("--width", type=positive_float, help="checkpoint only: channel width multiplier")
-    p.add_argument("--input-scale", type=positive_float, help="checkpoint only: network input scale, e.g. 0.25")
+    p.add_argument("--width", type=float_in(0.0, 16.0, low_open=True), help="checkpoint only: channel width multiplier")
+    p.add_argument("--input-scale", type=float_in(0.0, 1.0, low_open=True),
+                   help="checkpoint only: network input scale, e.g. 0.25")
 
 
 def main(args: argparse.Namespace) -> int:

@@ -7,8 +7,10 @@ import json
 import sys
 from pathlib import Path
 
-from tactile_force.edge.cli.args import finite_float
+from tactile_force.edge.cli.args import within
 from tactile_force.edge.errors import SourceError
+from tactile_force.edge.limits import COUNT, FORCE_N, FRAME_COUNT, MAX_FPS
+from tactile_force.edge.typed_json import Check
 
 from .discovery import UDEV_INSTALL_HINT, discover, udev_rules_path
 
@@ -79,14 +81,15 @@ def configure_record(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scale", default="auto", help="'auto' (first HID scale) or VID:PID in hex, e.g. 0922:8003")
     parser.add_argument("--out", type=Path,
                         help="dataset folder (authors' layout; resumed if present; required to record)")
-    parser.add_argument("--max", type=int, default=None, help="stop after this many samples")
-    parser.add_argument("--every", type=int, default=1, help="keep every n-th frame (default 1)")
+    parser.add_argument("--max", type=within(int, FRAME_COUNT), default=None, help="stop after this many samples")
+    parser.add_argument("--every", type=within(int, COUNT), default=1, help="keep every n-th frame (default 1)")
     parser.add_argument("--stable-only", action="store_true", help="skip frames while the scale reports motion")
-    parser.add_argument("--min-force", type=finite_float, default=None,
+    parser.add_argument("--min-force", type=within(float, FORCE_N), default=None,
                         help="skip frames below this reference force, N")
     parser.add_argument("--tare", action="store_true", help="take the scale's current stable reading as zero first")
     parser.add_argument("--resolution", default="QVGA", choices=["QVGA", "VGA"])
-    parser.add_argument("--fps", type=int, default=60, help="QVGA: 60 or 30; VGA: 30 or 15")
+    parser.add_argument("--fps", type=within(int, Check(ge=1, le=int(MAX_FPS))), default=60,
+                        help="QVGA: 60 or 30; VGA: 30 or 15")
     parser.add_argument("--intensity", default=None, help="LED r,g,b each 0..15 (firmware >= 200)")
 
 
@@ -139,10 +142,6 @@ def main_record(args: argparse.Namespace) -> int:
         print(f"tactile-force record: error: {' and '.join(missing)} required to record "
               "(or --repair DIR to repair a folder)", file=sys.stderr)
         return 2
-    for flag, v in (("--max", args.max), ("--every", args.every)):
-        if v is not None and v < 1:
-            print(f"tactile-force record: error: {flag} {v}: expected a whole number >= 1", file=sys.stderr)
-            return 2
     intensity = None
     if args.intensity:
         try:

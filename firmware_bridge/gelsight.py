@@ -67,8 +67,11 @@ class GelSightMiniOptions:
                 or self.size[0] < self.size[1]):
             raise ValueError(f"GelSight Mini size={self.size!r}: expected (width, height) positive integers, "
                              "landscape (width >= height), e.g. (640, 480)")
-        if not self.fps > 0 or not self.timeout_s > 0:
-            raise ValueError(f"GelSight Mini fps={self.fps}, timeout_s={self.timeout_s}: expected numbers > 0")
+        from tactile_force.edge.limits import FPS
+
+        if not FPS.in_range(self.fps) or not self.timeout_s > 0:
+            raise ValueError(f"GelSight Mini fps={self.fps}, timeout_s={self.timeout_s}: expected an fps in "
+                             f"[{FPS.ge:g}, {FPS.le:g}] and a timeout > 0 s")
 
 
 def crop_box(width: int, height: int, crop_fraction: float) -> tuple[int, int, int, int]:

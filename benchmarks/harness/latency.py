@@ -96,8 +96,9 @@ class LatencyResult:
     """Percentiles (ms) per stage, GMACs of the model (nan for the baseline), notes; bare:
     the same graph in a bare onnxruntime session on the same frames (onnxruntime cases).
     ``cpu_share``: the process CPU time over the wall time of the measuring loop (1.0 = one
-    core busy throughout; several threads can exceed 1). ``missed``: frames a paced source
-    skipped because the reader was late for them (no reading measured for them)."""
+    core busy throughout; several threads can exceed 1). ``missed``: measured frames a paced
+    source skipped because the reader was late for them (no reading measured for them; the
+    warm-up frames never count), so ``stages[...].n + missed`` is the measured frames."""
 
     case: LatencyCase
     stages: dict[str, Percentiles]
@@ -223,7 +224,7 @@ def measure(case: LatencyCase, pool: FramePool | None = None, clock: Clock = tim
     gate.capture_background(pool.background)
     n_total = case.warmup + case.frames
     source = (MemorySource(pool.rgb, n_total, clock) if fps is None
-              else PacedMemorySource(pool.rgb, fps, n_total, name="bench"))
+              else PacedMemorySource(pool.rgb, fps, n_total, name="bench", count_from=case.warmup))
     rt = ForceRuntime([Sensor("bench", source, gate)], p.model,
                       RuntimeOptions(threads=case.threads, deadline_ms=1e9, latency_window=16),
                       clock=clock, depth_factory=(depth or virtual_depth_stage) if case.needs_depth else None)
@@ -268,4 +269,5 @@ def measure(case: LatencyCase, pool: FramePool | None = None, clock: Clock = tim
         note = (note + f"; gate open on {n_contact}/{n_read} frames").strip("; ")
     b = percentiles(bare_ms[case.warmup:]) if bare_runner is not None else None
     return LatencyResult(case, {k: percentiles(v) for k, v in samples.items()}, p.gmacs, note, p.where, samples, b,
-                         cpu_s / wall_s if wall_s > 0 else math.nan, int(source.stats.dropped))
+                         cpu_s / wall_s if wall_s > 0 else math.nan,
+                         source.missed if isinstance(source, PacedMemorySource) else int(source.stats.dropped))

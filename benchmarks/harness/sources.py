@@ -63,11 +63,14 @@ class PacedMemorySource(FrameSource):
     """A camera stand-in over frames in memory: frame i is due at t0 + offset + i/fps; read()
     waits for it and stamps arrival when it has it (a reader that was late: when it fell
     due), skipping frames a slow reader missed (listed as superseded) like a camera's
-    newest-frame grabber."""
+    newest-frame grabber. ``missed``: the skipped frames from index ``count_from`` on (the
+    measured ones, after a warm-up); ``stats.dropped`` counts every skipped frame."""
 
-    def __init__(self, frames: np.ndarray, fps: float, n: int, offset_s: float = 0.0, name: str = "cam") -> None:
+    def __init__(self, frames: np.ndarray, fps: float, n: int, offset_s: float = 0.0, name: str = "cam",
+                 count_from: int = 0) -> None:
         super().__init__()
         self.frames, self.period, self.n, self.name = frames, int(1e9 / fps), n, name
+        self.count_from, self.missed = count_from, 0
         self.offset = int(offset_s * 1e9)
         self.t0: int | None = None
         self.next = 0
@@ -89,6 +92,7 @@ class PacedMemorySource(FrameSource):
             newest = int(min(self.n - 1, (now - self.t0) // self.period))
             if newest > i:
                 superseded = [(k, self.t0 + k * self.period) for k in range(i, newest)]
+                self.missed += max(0, newest - max(i, self.count_from))
                 i, due = newest, self.t0 + newest * self.period
                 self.stats.dropped += len(superseded)
             arrival = due

@@ -1,63 +1,55 @@
-"""argparse types shared by every subcommand: a bad value becomes argparse's usage error (exit 2)."""
+"""argparse types shared by every subcommand: a bad value becomes argparse's usage error
+(exit 2) naming the flag, before any work starts.
+
+Every numeric flag is bounded at both ends (tiny and huge values included) by :func:`within`
+with a bound of :mod:`tactile_force.edge.limits` (the same bounds the options records and
+constructors check) or a flag's own :class:`~tactile_force.edge.typed_json.Check`; the
+parser's type keeps it as ``check`` so tests can list every flag's range.
+"""
 
 from __future__ import annotations
 
 import argparse
 import math
 from collections.abc import Callable
+from typing import Any
+
+from ..typed_json import Check, describe_type
 
 
-def int_at_least(minimum: int) -> Callable[[str], int]:
-    """argparse type: an integer >= ``minimum``."""
+def within(kind: type[int] | type[float], chk: Check) -> Callable[[str], Any]:
+    """argparse type: an integer (``kind=int``) or a finite number (``kind=float``) within the
+    bounds of ``chk``."""
+    want = describe_type(kind, chk, None)
 
-    def parse(text: str) -> int:
+    def parse(text: str) -> int | float:
         try:
-            v = int(text)
+            v: int | float = int(text) if kind is int else float(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
-        if v < minimum:
-            raise argparse.ArgumentTypeError(f"{v}: expected an integer >= {minimum}")
+            raise argparse.ArgumentTypeError(f"{text!r} is not {'an integer' if kind is int else 'a number'}") from None
+        if isinstance(v, float) and not math.isfinite(v):
+            raise argparse.ArgumentTypeError(f"{text}: expected a finite {want.removeprefix('a ')}")
+        if not chk.in_range(v):
+            raise argparse.ArgumentTypeError(f"{text}: expected {want}")
         return v
 
+    parse.check = chk  # type: ignore[attr-defined]
     return parse
 
 
-#: argparse type: an integer >= 1.
-positive_int = int_at_least(1)
-#: argparse type: an integer >= 0.
-non_negative_int = int_at_least(0)
+def int_at_least(minimum: int, maximum: int = 2**31 - 1) -> Callable[[str], Any]:
+    """argparse type: an integer in ``minimum..maximum``."""
+    return within(int, Check(ge=minimum, le=maximum))
 
 
-def positive_float(text: str) -> float:
-    """argparse type: a finite number > 0."""
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not (math.isfinite(v) and v > 0):
-        raise argparse.ArgumentTypeError(f"{v}: expected a finite number > 0")
-    return v
+def float_in(low: float, high: float, *, low_open: bool = False, high_open: bool = False) -> Callable[[str], Any]:
+    """argparse type: a finite number in the range ``low..high`` (open at an end when asked)."""
+    return within(float, Check(gt=low if low_open else None, ge=None if low_open else low,
+                               lt=high if high_open else None, le=None if high_open else high))
 
 
-def finite_float(text: str) -> float:
-    """argparse type: a finite number (no nan, inf)."""
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not math.isfinite(v):
-        raise argparse.ArgumentTypeError(f"{v}: expected a finite number")
-    return v
-
-
-def float_in(low: float, high: float, *, low_open: bool = False, high_open: bool = False) -> Callable[[str], float]:
-    """argparse type: a finite number in the range ``low..high`` (``(`` / ``)`` when open)."""
-
-    def parse(text: str) -> float:
-        v = finite_float(text)
-        if (v < low or (low_open and v == low)) or (v > high or (high_open and v == high)):
-            lo, hi = "(" if low_open else "[", ")" if high_open else "]"
-            raise argparse.ArgumentTypeError(f"{v:g}: expected a number in {lo}{low:g}, {high:g}{hi}")
-        return v
-
-    return parse
+#: argparse types of earlier versions, bounded only below (the CLI's flags use :func:`within`).
+positive_int = int_at_least(1, 2**63 - 1)
+non_negative_int = int_at_least(0, 2**63 - 1)
+positive_float = within(float, Check(gt=0, le=1.7976931348623157e308))
+finite_float = within(float, Check(ge=-1.7976931348623157e308, le=1.7976931348623157e308))

@@ -18,7 +18,8 @@ import sys
 from pathlib import Path
 
 from ..errors import TactileForceError
-from .args import non_negative_int, positive_float, positive_int
+from ..limits import BUDGET_MS, COUNT, FPS, PAUSE_S, READINGS, THREADS
+from .args import within
 
 
 class BenchInputError(TactileForceError):
@@ -26,6 +27,8 @@ class BenchInputError(TactileForceError):
 
 
 def configure(p: argparse.ArgumentParser) -> None:
+    from tactile_force.benchmarks.harness.stats import MIN_P99_READINGS as FLOOR
+
     p.formatter_class = argparse.RawDescriptionHelpFormatter
     p.description = (
         "Measure bundles through the runtime on THIS host, twice: back to back (frames there when asked for) and at\n"
@@ -36,7 +39,7 @@ def configure(p: argparse.ArgumentParser) -> None:
         "  tactile-force bench --bundle B --data LABELLED_DIR --background NO_CONTACT.png   # + error (RE, MAE)\n"
         "  tactile-force bench --fps 30 --cadence-frames 1000   # a 30 fps sensor, 1000 readings at it (~34 s each)\n"
         "At 60 fps the default 300 cadence readings (and a warm-up) take ~5.5 s per bundle, on top of the\n"
-        "back-to-back run; a p99 verdict needs >= 100 readings.\n"
+        f"back-to-back run; a p99 verdict needs >= {FLOOR} readings at the cadence (back to back is not judged).\n"
         "Writes report.json (docs/bench.md), report.md and pareto.png (error vs p99 at the cadence) to --out.\n"
         "Exit 0 every bundle within budget, 1 any over budget or machine busy (no verdict), 2 bad input.")
     p.add_argument("--bundle", nargs="+", metavar="B", help="bundle folder(s) to measure (default: every shipped "
@@ -45,20 +48,20 @@ def configure(p: argparse.ArgumentParser) -> None:
                                              "forces/force_N.txt, e.g. from record or synth): adds error vs truth")
     p.add_argument("--background", type=Path, help="with --data: the sensor's no-contact image (else learnt from "
                                                    "the first frames, as 'run' does)")
-    p.add_argument("--threads", type=positive_int, default=1, help="ONNX Runtime / OpenCV threads (default 1)")
-    p.add_argument("--budget-ms", type=positive_float, default=1.0,
+    p.add_argument("--threads", type=within(int, THREADS), default=1, help="ONNX Runtime / OpenCV threads (default 1)")
+    p.add_argument("--budget-ms", type=within(float, BUDGET_MS), default=1.0,
                    help="budget for the end-to-end total p99 in ms (default 1.0)")
-    p.add_argument("--frames", type=positive_int, default=1000,
+    p.add_argument("--frames", type=within(int, READINGS), default=1000,
                    help="readings measured back to back per bundle (default 1000)")
-    p.add_argument("--fps", type=positive_float, default=60.0,
+    p.add_argument("--fps", type=within(float, FPS), default=60.0,
                    help="the sensor's cadence: frames arriving per second per sensor (default 60, a DIGIT's); the "
                         "verdict is judged at it")
-    p.add_argument("--cadence-frames", type=positive_int, default=300,
+    p.add_argument("--cadence-frames", type=within(int, READINGS), default=300,
                    help="readings measured at --fps per bundle (default 300: ~5.5 s per bundle at 60 fps, warm-up "
-                        "included; >= 100 for a p99 verdict)")
-    p.add_argument("--repeats", type=positive_int, default=3,
+                        f"included; >= {FLOOR} for a p99 verdict)")
+    p.add_argument("--repeats", type=within(int, COUNT), default=3,
                    help="attempts at most; a new one only after one over budget on a busy machine (default 3)")
-    p.add_argument("--pause-s", type=non_negative_int, default=30, help="seconds before a repeat (default 30)")
+    p.add_argument("--pause-s", type=within(int, PAUSE_S), default=30, help="seconds before a repeat (default 30)")
     p.add_argument("--out", type=Path, default=Path("tactile_force_bench"),
                    help="output folder (default tactile_force_bench); written whole when the bench ends")
     p.add_argument("--force", action="store_true", help="replace --out when it holds an earlier bench result")

@@ -27,7 +27,8 @@ from ..depth.overlay import PressRole, PressTile, circle_sheet, write_image
 from ..errors import DatasetError
 from ..files.guard import OutputKind, check_input, check_output
 from ..report.progress import progress
-from .args import float_in, int_at_least, positive_float
+from ..typed_json import Check
+from .args import float_in, within
 
 
 def overlay_path(output: str, overlay: str | None) -> Path:
@@ -45,16 +46,18 @@ def overlay_path(output: str, overlay: str | None) -> Path:
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("presses", help="folder of ball-press images, or .npz (imgs, f0, touch_center, touch_radius)")
     parser.add_argument("--background", help="no-contact frame (image file); default: f0 of the .npz")
-    parser.add_argument("--ball-radius-mm", type=positive_float, required=True,
+    parser.add_argument("--ball-radius-mm", type=float_in(0.0, 1000.0, low_open=True), required=True,
                         help="calibration ball radius, mm (a finite number > 0)")
-    parser.add_argument("--px-per-mm", type=positive_float, required=True,
+    parser.add_argument("--px-per-mm", type=float_in(0.0, 10_000.0, low_open=True), required=True,
                         help="image scale, pixels per mm (a finite number > 0); the detected contact circles are "
                              "checked against the ball's size in pixels (radius x scale)")
     parser.add_argument("--holdout", type=float_in(0.0, 1.0, low_open=True, high_open=True), default=0.25,
                         help="share of presses held out for the report (0 < share < 1)")
     parser.add_argument("--detect", action="store_true", help="detect circles even when the .npz has labels")
-    parser.add_argument("--bins", type=int_at_least(2), default=32, help="LUT bins per colour channel (>= 2)")
-    parser.add_argument("--bin-width", type=positive_float, default=6.0, help="colour levels per LUT bin")
+    parser.add_argument("--bins", type=within(int, Check(ge=2, le=256)), default=32,
+                        help="LUT bins per colour channel (>= 2)")
+    parser.add_argument("--bin-width", type=float_in(0.0, 256.0, low_open=True), default=6.0,
+                        help="colour levels per LUT bin")
     parser.add_argument("-o", "--output", required=True, help="calibration file to write (.npz)")
     parser.add_argument("--force", action="store_true", help="replace --output (and the circle image) if they exist")
     parser.add_argument("--overlay", metavar="PATH",

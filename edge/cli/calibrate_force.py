@@ -11,6 +11,7 @@ from pathlib import Path
 from ..bundle.interval import DEFAULT_COVERAGE, IntervalError
 from ..fitting.calibrate import calibrate_bundle
 from ..fitting.force_calibration import METHODS, CalibrationRefused
+from .args import float_in
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -31,7 +32,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                              "(default: the lightest press stands in for it); a depth bundle's presses are judged "
                              "against it as 'run --background' does (default: learnt from the first frames, as 'run' "
                              "does); refused when it looks pressed")
-    parser.add_argument("--coverage", type=float, default=DEFAULT_COVERAGE,
+    parser.add_argument("--coverage", type=float_in(0.0, 1.0, low_open=True, high_open=True), default=DEFAULT_COVERAGE,
                         help="coverage of every reading's interval, fitted on the leave-one-out predictions "
                              f"(default {DEFAULT_COVERAGE:g}; 0 < c < 1)")
 

@@ -14,8 +14,9 @@ import numpy as np
 
 from ..data.metrics import cnn_readings
 from ..errors import SceneError, SourceError
+from ..limits import GRASPS, SEED, THREADS
 from ..reading import Flags, ForceReading
-from .args import positive_int
+from .args import within
 from .replay_report import PLOT_NAME, plot_force
 
 
@@ -95,10 +96,11 @@ def run_demo(source, bundle: str | os.PathLike, out_dir: str | os.PathLike, thre
 def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", default="tactile_force_demo",
                    help=f"output folder, relative to the working directory ({PLOT_NAME}, readings.csv, summary.json)")
-    p.add_argument("--grasps", type=positive_int, default=3, help="grasp sequences the virtual DIGIT plays (>= 1)")
-    p.add_argument("--seed", type=int, default=0, help="random seed of the virtual DIGIT")
+    p.add_argument("--grasps", type=within(int, GRASPS), default=3,
+                   help="grasp sequences the virtual DIGIT plays (>= 1)")
+    p.add_argument("--seed", type=within(int, SEED), default=0, help="random seed of the virtual DIGIT")
     p.add_argument("--bundle", default="default", help="model bundle (default: the embedded default model)")
-    p.add_argument("--threads", type=positive_int, default=1, help="ONNX Runtime intra-op threads (>= 1)")
+    p.add_argument("--threads", type=within(int, THREADS), default=1, help="ONNX Runtime intra-op threads (>= 1)")
     p.add_argument("--force", action="store_true", help="replace --out when it holds an earlier demo's result")
 
 

@@ -106,6 +106,21 @@ def _exit_code(exc: BaseException) -> tuple[int, str]:
                "(please report it; rerun with --debug for the traceback)")
 
 
+def flag_named(message: str, parser: argparse.ArgumentParser) -> str:
+    """``message`` led by the flag the user typed when it names a parameter the flag sets
+    (``VirtualDigitSource.seed=-1: ...`` -> ``--seed: VirtualDigitSource.seed=-1: ...``): an
+    error from a constructor or options record the verb built from the flags names the flag."""
+    import re
+
+    for action in parser._actions:  # argparse keeps its options here; no public accessor
+        flags = [f for f in action.option_strings if f.startswith("--")]
+        if not flags or action.dest in ("help", "force") or any(f in message for f in flags):
+            continue
+        if re.search(rf"\b\w+\.{re.escape(action.dest)}\b(?![.\w])", message):
+            return f"{flags[0]}: {message}"
+    return message
+
+
 class Interrupted(KeyboardInterrupt):
     """SIGINT or SIGTERM arrived while a command ran; ``signum`` says which."""
 
@@ -147,10 +162,32 @@ class _Signals:
 def main(argv: list[str] | None = None) -> int:
     """Run one subcommand. Exit codes: 0 success, 1 a check failed, 2 bad input or usage,
     130 interrupted (SIGINT), 143 terminated (SIGTERM). ``--debug`` (anywhere, or
-    TACTILE_FORCE_DEBUG=1) shows tracebacks."""
+    TACTILE_FORCE_DEBUG=1) shows tracebacks.
+
+    The signal handlers are the first thing installed, before the verb's module is imported,
+    so a Ctrl-C at any moment exits 130 with one line (in a process started as the CLI,
+    :mod:`tactile_force.edge._cli_start` covers the moments before this function runs)."""
+    signals = _Signals()
+    name = "(starting)"
+    try:
+        with signals:
+            argv = list(sys.argv[1:] if argv is None else argv)
+            name = argv[0] if argv and argv[0] in COMMANDS else name
+            return _run(argv, signals)
+    except KeyboardInterrupt as exc:
+        print(f"tactile-force {name}: interrupted; nothing half-made was kept", file=sys.stderr)
+        return signals.code(exc)
+    except BaseException:
+        if signals.received is not None:  # an error raised while unwinding from a signal
+            print(f"tactile-force {name}: interrupted while stopping", file=sys.stderr)
+            return signals.code()
+        raise
+
+
+def _run(argv: list[str], signals: _Signals) -> int:
+    """:func:`main` inside the signal handlers."""
     import os
 
-    argv = list(sys.argv[1:] if argv is None else argv)
     debug = "--debug" in argv or os.environ.get("TACTILE_FORCE_DEBUG", "") not in ("", "0")
     argv = [a for a in argv if a != "--debug"]
     if not argv or argv[0] in ("-h", "--help", "help"):
@@ -169,6 +206,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         module = importlib.import_module(module_name)
     except ImportError as exc:  # ModuleNotFoundError, or MissingExtraError from a package's own check
+        if signals.received is not None:  # an import cut short by the signal
+            raise
         from ..errors import MissingExtraError
 
         missing = exc.module if isinstance(exc, MissingExtraError) else (exc.name or "")
@@ -185,21 +224,17 @@ def main(argv: list[str] | None = None) -> int:
         args = parser.parse_args(argv[1:])
     except SystemExit as exc:  # usage errors (2) and --help (0), also when called in-process
         return exc.code if isinstance(exc.code, int) else 2
-    signals = _Signals()
     try:
-        with signals:
-            code = int(getattr(module, main_name)(args) or 0)
-    except KeyboardInterrupt as exc:
-        print(f"tactile-force {name}: interrupted; nothing half-made was kept", file=sys.stderr)
-        return signals.code(exc)
+        code = int(getattr(module, main_name)(args) or 0)
+    except KeyboardInterrupt:
+        raise
     except Exception as exc:  # the error contract: one line, no traceback (--debug shows it)
         if signals.received is not None:  # an error raised while unwinding from a signal
-            print(f"tactile-force {name}: interrupted ({type(exc).__name__} while stopping)", file=sys.stderr)
-            return signals.code()
+            raise
         if debug:
             raise
         code, message = _exit_code(exc)
-        print(f"tactile-force {name}: {message}", file=sys.stderr)
+        print(f"tactile-force {name}: {flag_named(message, parser)}", file=sys.stderr)
         return code
     if signals.received is not None:  # the verb caught the interrupt itself: never a success
         return signals.code()

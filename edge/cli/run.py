@@ -16,9 +16,10 @@ import threading
 from typing import TextIO
 
 from ..errors import CheckFailedError, SceneError, SourceError
+from ..limits import FPS, FRAME_COUNT
 from ..reading import Flags, ForceReading
 from ..report.plots import nice_ticks  # noqa: F401 - re-exported (tests, older callers)
-from .args import positive_float, positive_int
+from .args import within
 from .replay_report import plot_force, replay_plot_path, truth_lines
 
 
@@ -35,7 +36,7 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument("--bundle", default=None, help="with --source: model bundle folder (default: the embedded model)")
     p.add_argument("--background", help="with --source: no-contact image (or folder of them); "
                                         "else learnt from the first frames")
-    p.add_argument("--fps", type=positive_float, help="with --source: camera rate, or pace a replay at this rate")
+    p.add_argument("--fps", type=within(float, FPS), help="with --source: camera rate, or pace a replay at this rate")
     p.add_argument("--name", default="sensor", help="with --source: the sensor's name in readings (default: sensor)")
     p.add_argument("--out", action="append", default=[], metavar="FILE",
                    help="with --source: also write readings to FILE.csv, FILE.jsonl or FILE.mcap (repeatable)")
@@ -55,7 +56,7 @@ def configure(p: argparse.ArgumentParser) -> None:
                    help="with --zenoh: if no router answers, keep running (the other outputs get every reading) "
                         "and keep trying to reach it")
     p.add_argument("--save-scene", metavar="FILE", help="write the scene that runs as a TOML file")
-    p.add_argument("--max-frames", type=positive_int, default=None,
+    p.add_argument("--max-frames", type=within(int, FRAME_COUNT), default=None,
                    help="stop after this many readings (>= 1; default: scene / until sources end)")
     p.add_argument("--force", action="store_true",
                    help="replace --out / --save-scene files that exist (never an input)")

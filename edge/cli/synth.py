@@ -7,26 +7,29 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 from pathlib import Path
 
-from .args import finite_float
+from ..limits import COUNT, FRACTION, SEED
+from .args import within
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
     """Arguments of the synth command."""
     parser.add_argument("--out", required=True, help="output folder (new or empty; written whole when done)")
     parser.add_argument("--force", action="store_true", help="replace --out when it holds an earlier synth dataset")
-    parser.add_argument("--n", type=int, default=1000, help="number of samples (default 1000)")
-    parser.add_argument("--seed", type=int, default=0, help="random seed (same seed -> same files)")
+    parser.add_argument("--n", type=within(int, COUNT), default=1000, help="number of samples (default 1000)")
+    parser.add_argument("--seed", type=within(int, SEED), default=0, help="random seed (same seed -> same files)")
     parser.add_argument("--indenters", default="paper",
                         help="'paper' (the 18 paper-like indenters), 'all', or comma-separated names")
-    parser.add_argument("--frames-per-grasp", type=int, default=8, help="samples sharing one pose (default 8)")
-    parser.add_argument("--edge-fraction", type=finite_float, default=0.15, help="share of contacts near a border")
-    parser.add_argument("--below-fraction", type=finite_float, default=0.0, help="share of samples in 0-1 N")
-    parser.add_argument("--above-fraction", type=finite_float, default=0.0, help="share of samples in 15-20 N")
-    parser.add_argument("--no-contact-fraction", type=finite_float, default=0.0, help="share of 0 N frames")
+    parser.add_argument("--frames-per-grasp", type=within(int, COUNT), default=8,
+                        help="samples sharing one pose (default 8)")
+    parser.add_argument("--edge-fraction", type=within(float, FRACTION), default=0.15,
+                        help="share of contacts near a border")
+    parser.add_argument("--below-fraction", type=within(float, FRACTION), default=0.0, help="share of samples in 0-1 N")
+    parser.add_argument("--above-fraction", type=within(float, FRACTION), default=0.0,
+                        help="share of samples in 15-20 N")
+    parser.add_argument("--no-contact-fraction", type=within(float, FRACTION), default=0.0, help="share of 0 N frames")
     parser.add_argument("--background", default=None, help="no-contact DIGIT frame to render on (default: shipped)")
     parser.add_argument("--normal-to-rgb-mlp", default=None,
                         help="FOTS normal->colour MLP .npz to shade with instead of the analytic LED model")
@@ -44,14 +47,7 @@ def _inputs(args: argparse.Namespace) -> list[tuple[str, str | None]]:
 def _problems(args: argparse.Namespace) -> list[str]:
     """What is wrong with the arguments (before anything is rendered), one line each."""
     out: list[str] = []
-    if args.n < 1:
-        out.append(f"--n {args.n}: expected a number of samples >= 1")
-    if args.frames_per_grasp < 1:
-        out.append(f"--frames-per-grasp {args.frames_per_grasp}: expected >= 1")
-    for flag in ("edge_fraction", "below_fraction", "above_fraction", "no_contact_fraction"):
-        v = getattr(args, flag)
-        if not (math.isfinite(v) and 0.0 <= v <= 1.0):
-            out.append(f"--{flag.replace('_', '-')} {v}: expected a share from 0 to 1")
+    # --n, --frames-per-grasp and the shares are range-checked by the parser (edge/limits.py)
     if args.below_fraction + args.above_fraction > 1.0:
         out.append("--below-fraction + --above-fraction add up to more than 1")
     dest = Path(args.out)

@@ -47,25 +47,27 @@ class GateOptions:
     stable_level: mean thumbnail change (grey levels) between frames under which a frame is stable.
     """
 
-    background_frames: int = field(default=5, metadata=check(ge=1))
-    blur: int = field(default=3, metadata=check(ge=1, expected="an odd integer >= 1 (Gaussian kernel, pixels)"))
+    background_frames: int = field(default=5, metadata=check(ge=1, le=10_000))
+    blur: int = field(default=3, metadata=check(
+        ge=1, le=99, expected="an odd integer in [1, 99] (Gaussian kernel, pixels)"))
     threshold: float = field(default=10.0, metadata=check(gt=0, lt=255))
     on_area_frac: float = field(default=0.006, metadata=check(ge=0, lt=1))
     off_area_frac: float = field(default=0.003, metadata=check(ge=0, lt=1))
     min_blob_frac: float = field(default=0.0015, metadata=check(ge=0, lt=1))
-    downscale: int = field(default=4, metadata=check(ge=1))
+    downscale: int = field(default=4, metadata=check(ge=1, le=16))
     refresh_rate: float = field(default=0.02, metadata=check(ge=0, lt=1))
     saturation_threshold: float = field(default=60.0, metadata=check(gt=0))
     saturation_area_frac: float = field(default=0.25, metadata=check(gt=0, le=1))
     convex_hull: bool = False
-    open_px: int = field(default=0, metadata=check(ge=0, expected="an integer >= 0 (0 = no opening)"))
+    open_px: int = field(default=0, metadata=check(ge=0, le=50, expected="an integer in [0, 50] (0 = no opening)"))
     trust: bool = True
     fit_tolerance: float = field(default=8.0, metadata=check(gt=0))
     step_level: float = field(default=10.0, metadata=check(gt=0))
     fit_floor: float = field(default=0.35, metadata=check(gt=0, lt=1))
     motion_explained: float = field(default=0.35, metadata=check(gt=0, lt=1))
     noise_factor: float = field(default=2.2, metadata=check(gt=0))
-    relearn_frames: int = field(default=30, metadata=check(ge=0, expected="an integer >= 0 (0 = never)"))
+    relearn_frames: int = field(default=30, metadata=check(ge=0, le=1_000_000,
+                                                            expected="an integer in [0, 1000000] (0 = never)"))
     stable_level: float = field(default=2.0, metadata=check(gt=0))
 
     @classmethod

@@ -29,6 +29,7 @@ from ..checks import expect
 from ..errors import BundleError, FrameError, ModelClosedError
 from ..frames import FRAME_COLS, FRAME_ROWS, MAX_BATCH, check_batch
 from ..gate.reduce import FrameReducer
+from ..limits import THREADS, bounds
 
 RGB_SHAPE = (FRAME_ROWS, FRAME_COLS, 3)
 DEPTH_SHAPE = (FRAME_ROWS, FRAME_COLS, 1)
@@ -67,8 +68,9 @@ class OnnxForceModel:
 
         expect(bundle, (Bundle, str, os.PathLike), "OnnxForceModel.bundle", "a Bundle or a bundle folder path",
                nonempty=True)
-        expect(threads, int, "OnnxForceModel.threads", "an integer >= 1 (ONNX Runtime intra-op threads)", ge=1)
-        expect(warmup, int, "OnnxForceModel.warmup", "an integer >= 0 (warm-up runs at load)", ge=0)
+        expect(threads, int, "OnnxForceModel.threads", "an integer in [1, 1024] (ONNX Runtime intra-op threads)",
+               **bounds(THREADS))
+        expect(warmup, int, "OnnxForceModel.warmup", "an integer in [0, 10000] (warm-up runs at load)", ge=0, le=10_000)
         expect(calibrate, bool, "OnnxForceModel.calibrate")
         self.bundle = bundle if isinstance(bundle, Bundle) else load_bundle(bundle)
         m = self.bundle.manifest

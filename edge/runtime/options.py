@@ -18,6 +18,7 @@ from ..checks import check_fields, expect, expect_members
 from ..errors import ArgumentTypeError, OptionsError
 from ..frames import MAX_BATCH, FrameReader, FrameSource
 from ..gate.contact_gate import ContactGate
+from ..limits import DEADLINE_MS, THREADS, WINDOW, as_metadata
 from ..reading import ForceReading, StageLatency
 from ..typed_json import check
 
@@ -180,10 +181,10 @@ class RuntimeOptions:
     threads < 1, latency_window < 1 or workers not 1 to 16, :class:`ArgumentTypeError` for a value of another type."""
 
     deadline_ms: float = field(default=16.7, metadata=check(
-        gt=0, expected="a finite number of milliseconds > 0 (e.g. 16.7 for 60 fps)"))
-    threads: int = field(default=1, metadata=check(ge=1))
+        gt=DEADLINE_MS.gt, le=DEADLINE_MS.le, expected="a number of milliseconds in (0, 1e9] (e.g. 16.7 for 60 fps)"))
+    threads: int = field(default=1, metadata=as_metadata(THREADS))
     report_stale: bool = True
-    latency_window: int = field(default=600, metadata=check(ge=1))
+    latency_window: int = field(default=600, metadata=as_metadata(WINDOW))
     grabbers: bool | None = None
     prewarm: Literal["auto", True, False] = "auto"
     workers: int | None = field(default=None, metadata=check(

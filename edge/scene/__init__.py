@@ -212,7 +212,9 @@ def __getattr__(name: str) -> Any:
         value = getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
         globals()[name] = value
         return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    from .. import _moved
+
+    return _moved.old_name(__name__, name)  # a name earlier versions had here (DeprecationWarning), or AttributeError
 
 
 def __dir__() -> list[str]:

@@ -14,6 +14,7 @@ from typing import Any, Literal
 
 from ..errors import SceneError, SourceError
 from ..gate.options import GateOptions
+from ..limits import FPS, GRASPS, SEED, as_metadata
 from ..typed_json import check
 from .model import Clock, SensorKeys, SensorSpec
 
@@ -38,7 +39,7 @@ class SourceKind:
         return [f.name for f in dataclasses.fields(self.keys) if f.name not in common]
 
 
-_FPS = check(gt=0)
+_FPS = as_metadata(FPS)
 _DEVICE = check(ge=0, expected="a camera index or a /dev/videoN path")
 
 
@@ -91,8 +92,9 @@ class VideoKeys(SensorKeys):
 class VirtualKeys(SensorKeys):
     """``virtual``: seed, n_grasps (grasps played, >= 1), fps (frames per second)."""
 
-    seed: int = 0
-    n_grasps: int = field(default=3, metadata=check(ge=1, expected="an integer >= 1 (grasps the virtual DIGIT plays)"))
+    seed: int = field(default=0, metadata=as_metadata(SEED))
+    n_grasps: int = field(default=3, metadata=check(
+        ge=GRASPS.ge, le=GRASPS.le, expected="an integer in [1, 10000] (grasps the virtual DIGIT plays)"))
     fps: float = field(default=60.0, metadata=_FPS)
 
 

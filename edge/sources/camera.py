@@ -17,6 +17,7 @@ import numpy as np
 from ..checks import expect
 from ..errors import SourceError
 from ..frames import FRAME_SHAPE, FrameSource, TimedFrame
+from ..limits import FPS, bounds
 from .common import MAX_CORRUPT_IN_ROW, Clock, StreamLost, check_shape, fit_frame, orient_digit
 
 _log = logging.getLogger(__name__)
@@ -98,11 +99,11 @@ class CameraSource(FrameSource):
         super().__init__()
         expect(device, int | str, "CameraSource.device", "a camera index >= 0 or a /dev/videoN path", ge=0,
                nonempty=True)
-        expect(fps, float, "CameraSource.fps", "a frame rate > 0 (frames per second)", gt=0)
+        expect(fps, float, "CameraSource.fps", "a frame rate in [0.01, 10000] per second", **bounds(FPS))
         expect(fourcc, tuple[str, ...], "CameraSource.fourcc", "a tuple of FOURCC codes such as ('MJPG', 'YUYV')")
         check_shape(shape, "CameraSource.shape", optional=False)
         expect(size, tuple[int, int] | None, "CameraSource.size", "(width, height) in pixels >= 1, or None", ge=1)
-        expect(timeout_s, float, "CameraSource.timeout_s", "a number of seconds > 0", gt=0)
+        expect(timeout_s, float, "CameraSource.timeout_s", "a number of seconds in (0, 3600]", gt=0, le=3600)
         expect(max_failures, int, "CameraSource.max_failures", ge=1)
         expect(max_corrupt, int, "CameraSource.max_corrupt", ge=1)
         expect(name, str, "CameraSource.name", nonempty=True)

@@ -27,6 +27,7 @@ from ..data.dataset import AuthorsDataset, read_image
 from ..data.labels import LabelError, read_force_file
 from ..errors import DatasetError, SourceError
 from ..frames import FRAME_SHAPE, FrameSource, TimedFrame
+from ..limits import FPS, bounds
 from .common import Clock, check_shape, fit_frame, natural_key
 
 _log = logging.getLogger(__name__)
@@ -44,7 +45,8 @@ class _FileSequenceSource(FrameSource):
     def __init__(self, fps: float | None, clock: Clock, sleep: Callable[[float], None]) -> None:
         super().__init__()
         owner = type(self).__name__
-        expect(fps, float | None, f"{owner}.fps", "a frame rate > 0 or None (unpaced)", gt=0)
+        expect(fps, float | None, f"{owner}.fps", "a frame rate in [0.01, 10000] per second, or None (unpaced)",
+               **bounds(FPS))
         expect(clock, Callable, f"{owner}.clock", "a callable returning monotonic ns")
         expect(sleep, Callable, f"{owner}.sleep", "a callable sleeping for seconds")
         expect(self.name, str, f"{owner}.name", nonempty=True)

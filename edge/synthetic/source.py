@@ -15,7 +15,9 @@ import time
 import numpy as np
 
 from ..checks import expect
+from ..errors import OptionsError
 from ..frames import FrameSource, TimedFrame
+from ..limits import FORCE_N, FPS, GRASPS, SEED, SPAN_S, bounds
 from .digit import VirtualDigit, VirtualDigitOptions
 from .indenters import paper_indenter_names
 from .sampling import sample_contact
@@ -51,11 +53,15 @@ class VirtualDigitSource(FrameSource):
                  options: VirtualDigitOptions | None = None, render_ahead: int = 2) -> None:
         super().__init__()
         c = "VirtualDigitSource"
-        expect(seed, int, f"{c}.seed", ge=0)
-        expect(n_grasps, int, f"{c}.n_grasps", "an integer >= 1 (grasps before the stream ends)", ge=1)
-        expect(fps, float, f"{c}.fps", "a frame rate > 0", gt=0)
-        expect(peak_n, tuple[float, float], f"{c}.peak_n", "(low, high) peak forces in N, >= 0", ge=0)
-        expect(lead_in_s, float, f"{c}.lead_in_s", "seconds >= 0", ge=0)
+        expect(seed, int, f"{c}.seed", **bounds(SEED))
+        expect(n_grasps, int, f"{c}.n_grasps", "an integer in [1, 10000] (grasps before the stream ends)",
+               **bounds(GRASPS))
+        expect(fps, float, f"{c}.fps", "a frame rate in [0.01, 10000] per second", **bounds(FPS))
+        expect(peak_n, tuple[float, float], f"{c}.peak_n", "(low, high) peak forces in N, in [0, 1000]",
+               **bounds(FORCE_N))
+        if peak_n[0] > peak_n[1]:
+            raise OptionsError(f"{c}.peak_n={tuple(peak_n)!r}: expected (low, high) with low <= high")
+        expect(lead_in_s, float, f"{c}.lead_in_s", "seconds in [0, 3600]", **bounds(SPAN_S))
         expect(indenters, list[str] | None, f"{c}.indenters", "a list of indenter names, or None (the paper's 18)")
         expect(edge_fraction, float, f"{c}.edge_fraction", ge=0, le=1)
         expect(led_drift, float, f"{c}.led_drift", ge=0)
@@ -63,7 +69,7 @@ class VirtualDigitSource(FrameSource):
         expect(start_ns, int | None, f"{c}.start_ns", "monotonic ns, or None (now)")
         expect(name, str, f"{c}.name", nonempty=True)
         expect(options, VirtualDigitOptions | None, f"{c}.options", "a VirtualDigitOptions or None (the defaults)")
-        expect(render_ahead, int, f"{c}.render_ahead", "frames >= 0 (0 renders inside read())", ge=0)
+        expect(render_ahead, int, f"{c}.render_ahead", "frames in [0, 1000] (0 renders inside read())", ge=0, le=1000)
         self.name = name
         opts = options or VirtualDigitOptions()
         from dataclasses import replace

@@ -105,9 +105,10 @@ def test_the_cadence_record_round_trips_and_an_older_report_still_reads():
         BenchReport.from_json(_report_raw({**cadence, "fps": 0}))
 
 
-@pytest.mark.parametrize("value, expected", [("0", "expected a finite number > 0"),
-                                             ("nan", "expected a finite number > 0"),
-                                             ("-60", "expected a finite number > 0"),
+@pytest.mark.parametrize("value, expected", [("0", "expected a number in [0.01, 10000]"),
+                                             ("nan", "expected a finite number in [0.01, 10000]"),
+                                             ("-60", "expected a number in [0.01, 10000]"),
+                                             ("1e-300", "expected a number in [0.01, 10000]"),
                                              ("x", "'x' is not a number")])
 def test_a_bad_fps_exits_2_naming_the_flag(tmp_path, capsys, value, expected):
     assert main(["bench", "--fps", value, "--out", str(tmp_path / "o")]) == 2
