@@ -117,6 +117,8 @@ GONE: dict[str, dict[str, str]] = {
     "edge.scene": {"Key": _KEYS_GONE},
     "edge.scene.model": {"Key": _KEYS_GONE},
     "export.quantize": {"vars_of": "use dataclasses.asdict"},
+    "edge.runtime.prewarm": {"MARGIN_NS": "the margin before a frame is measured on the host (how early frames came "
+                                          "against their prediction): Prewarm.lead_ns"},
 }
 
 #: module (under tactile_force.) that no longer exists -> what replaced it
