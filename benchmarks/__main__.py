@@ -2,6 +2,7 @@
 
     python -m benchmarks all --out docs/benchmarks    # quant, stability, into the docs
     python -m benchmarks all --quick                  # smoke run (never into the docs)
+    python -m benchmarks stability --shipped-only --out DIR   # stiff / extreme cases, shipped bundles only
     python -m benchmarks robustness --out docs        # bad inputs and faults, counted -> docs/robustness.md
     python -m benchmarks trust --out docs/benchmarks  # frames that cannot be judged, counted -> trust.md
     python -m benchmarks intervals --out docs/benchmarks  # every reading's error bar, measured -> intervals.md
@@ -100,6 +101,9 @@ def _main(argv: list[str] | None = None) -> int:
                     help="trust: also store the default bundle's data_stats in edge/models/default/model.json")
     ap.add_argument("--examples", type=int, default=100,
                     help="robustness: generated cases per generated category (default 100; --quick: 15)")
+    ap.add_argument("--shipped-only", action="store_true",
+                    help="stability: only the bundles shipped in edge/models (no torch, no random-weight bundles; "
+                         "a few minutes)")
     ap.add_argument("--quick", action="store_true", help="few frames per row: a smoke run, never written to the docs")
     ap.add_argument("--out", type=Path, default=default_out(),
                     help="where tables and plots go (default out/benchmarks; docs/benchmarks only when named)")
