@@ -2,10 +2,12 @@
 
     python -m benchmarks all --out docs/benchmarks    # quant, stability, into the docs
     python -m benchmarks all --quick                  # smoke run (never into the docs)
+    python -m benchmarks stability --shipped-only --out DIR   # stiff / extreme cases, shipped bundles only
     python -m benchmarks robustness --out docs        # bad inputs and faults, counted -> docs/robustness.md
     python -m benchmarks trust --out docs/benchmarks  # frames that cannot be judged, counted -> trust.md
     python -m benchmarks intervals --out docs/benchmarks  # every reading's error bar, measured -> intervals.md
     python -m benchmarks cadence --out docs/benchmarks    # latency at 60 fps, 1 and 8 sensors -> cadence.md
+    python -m benchmarks error --out docs/benchmarks      # shipped bundles: error vs run time -> error_vs_runtime.md
 
 Results go to ``--out DIR`` (default out/benchmarks, git-ignored); docs/benchmarks only
 when it is named. Every page states the command, the commit of the code that measured, the
@@ -90,8 +92,9 @@ def _main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     ap = argparse.ArgumentParser(prog="python -m benchmarks", description=(__doc__ or "").split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__)
-    ap.add_argument("what", nargs="?", choices=(*TASKS, "robustness", "trust", "intervals", "cadence"),
-                    help="which page to make; 'robustness', 'trust', 'intervals' and 'cadence' are not part of 'all'")
+    ap.add_argument("what", nargs="?", choices=(*TASKS, "robustness", "trust", "intervals", "cadence", "error"),
+                    help="which page to make; 'robustness', 'trust', 'intervals', 'cadence' and 'error' are not part "
+                         "of 'all'")
     ap.add_argument("--rounds", type=int, default=3,
                     help="cadence: rounds of interleaved phases (default 3; --quick: 1)")
     ap.add_argument("--bench-runs", type=int, default=10,
@@ -100,6 +103,9 @@ def _main(argv: list[str] | None = None) -> int:
                     help="trust: also store the default bundle's data_stats in edge/models/default/model.json")
     ap.add_argument("--examples", type=int, default=100,
                     help="robustness: generated cases per generated category (default 100; --quick: 15)")
+    ap.add_argument("--shipped-only", action="store_true",
+                    help="stability: only the bundles shipped in edge/models (no torch, no random-weight bundles; "
+                         "a few minutes)")
     ap.add_argument("--quick", action="store_true", help="few frames per row: a smoke run, never written to the docs")
     ap.add_argument("--out", type=Path, default=default_out(),
                     help="where tables and plots go (default out/benchmarks; docs/benchmarks only when named)")
@@ -123,6 +129,10 @@ def _main(argv: list[str] | None = None) -> int:
         from .cadence import run as run_cadence
 
         return run_cadence(args, argv)
+    if args.what == "error":
+        from .error_vs_runtime import run as run_error
+
+        return run_error(args, argv)
     if args.what == "intervals":
         from .intervals import intervals_page
 

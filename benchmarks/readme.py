@@ -31,10 +31,13 @@ PAGES = (
                    "PyTorch eager, onnxruntime and OpenVINO side by side; two sensors; the demo's late readings; "
                    "masked depth evaluation; the gate's cost",
      ""),
-    ("error_vs_runtime.md", "Error (RE / MAE, per 1 N bin; synthetic held-out indenters and real AUROVA frames) "
-                            "against p50 / p99 of every trained bundle (+ error_vs_runtime.png, the Pareto plot)",
-     ""),
-    ("stability.md", "Stiff and extreme cases: non-finite outputs, flags, monotone sweeps, int8 vs fp32",
+    ("error_vs_runtime.md", "Error (RE / MAE; synthetic held-out test indenters and real AUROVA frames) against "
+                            "total p50 / p99 back to back and at 60 fps of every shipped bundle "
+                            "(+ error_vs_runtime.png, the Pareto plot, and error_vs_runtime.json)",
+     "python -m benchmarks error --out docs/benchmarks"),
+    ("stability.md", "Stiff and extreme cases: non-finite outputs, flags, monotone sweeps, int8 vs fp32; every "
+                     "shipped bundle (edge/models) beside trained and random-weight ones (`--shipped-only`: the "
+                     "shipped ones alone, no torch)",
      "python -m benchmarks stability --out docs/benchmarks"),
     ("one_downscale.md", "One downscale per frame: runtime total and gate against a bare onnxruntime session on "
                          "the previous default graph, the graph node by node, the under-1 ms check 10 times", ""),

@@ -135,9 +135,28 @@ def dataset_root() -> Path:
     return cache_dir() / f"synth-n{DATASET_N}-seed{DATASET_SEED}-above{ABOVE_RANGE_SHARE:g}"
 
 
+def dataset_options():
+    """The reference dataset's :class:`tactile_force.edge.synthetic.DatasetOptions`."""
+    from tactile_force.edge.synthetic import DatasetOptions, ForceDistribution
+
+    return DatasetOptions(n=DATASET_N, seed=DATASET_SEED, progress=False,
+                          forces=ForceDistribution(above_fraction=ABOVE_RANGE_SHARE))
+
+
+def heldout_test_split(limit: int = 0) -> list[tuple[int, np.ndarray, float, dict]]:
+    """The held-out test split (:data:`SPLIT`'s test indenters) of the reference dataset,
+    rendered alone by the virtual DIGIT (seconds, no torch, no cache): (sample number, frame
+    320 x 240 x 3 uint8 BGR, force N, metadata), bit for bit the frames :func:`ensure_dataset`
+    writes for them; ``limit`` > 0: the first ``limit`` only."""
+    from tactile_force.edge.synthetic import paper_split, render_samples
+
+    out = render_samples(dataset_options(), paper_split(SPLIT).test)
+    return out[:limit] if limit else out
+
+
 def ensure_dataset() -> Path:
     """Generate the synthetic dataset once (authors' layout + meta.jsonl)."""
-    from tactile_force.edge.synthetic import DatasetOptions, generate_dataset
+    from tactile_force.edge.synthetic import generate_dataset
 
     root = dataset_root()
     if (root / "DONE").is_file():
@@ -145,10 +164,7 @@ def ensure_dataset() -> Path:
     tmp = root.with_name(root.name + ".partial")
     shutil.rmtree(tmp, ignore_errors=True)
     log(f"generating {DATASET_N} synthetic frames into {root}")
-    from tactile_force.edge.synthetic import ForceDistribution
-
-    summary = generate_dataset(tmp, DatasetOptions(n=DATASET_N, seed=DATASET_SEED, progress=False,
-                                                   forces=ForceDistribution(above_fraction=ABOVE_RANGE_SHARE)))
+    summary = generate_dataset(tmp, dataset_options())
     log(f"generated at {summary.frames_per_s:.0f} frames/s")
     (tmp / "DONE").write_text(json.dumps(summary.as_dict(), default=str, indent=2))
     shutil.rmtree(root, ignore_errors=True)

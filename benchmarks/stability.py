@@ -4,9 +4,10 @@ stage, ORT).
 Cases rendered with the virtual DIGIT: very rigid small indenters, soft objects, force
 sweeps 0-1 N and 15-20 N, contacts at the gel's curved edge, dark / over-exposed / noisy /
 drifting-LED frames, and float frames holding NaN / inf. For every bundle available
-(trained reference bundles, and random-weight bundles of every variant x precision) it
-counts non-finite model outputs (must be 0), checks the flags, the share of monotone steps
-along force sweeps, and the int8 vs fp32 divergence at the extremes.
+(every shipped bundle, found as ``edge/models/*/model.json``; trained reference bundles; and
+random-weight bundles of every variant x precision, built with torch unless
+``--shipped-only``) it counts non-finite model outputs (must be 0), checks the flags, the
+share of monotone steps along force sweeps, and the int8 vs fp32 divergence at the extremes.
 """
 
 from __future__ import annotations
@@ -97,13 +98,15 @@ def build_cases(quick: bool = False) -> list[Case]:
     return cases
 
 
-def run_case(model, case: Case, background: np.ndarray) -> CaseReadings:
+def run_case(model, case: Case, background: np.ndarray, depth_factory=virtual_depth_stage) -> CaseReadings:
+    """``case`` through a runtime over ``model``; ``depth_factory`` None: the depth stage the
+    bundle's manifest records (as ``run`` builds it), else the virtual DIGIT's."""
     from tactile_force.edge import ContactGate, Flags, ForceRuntime, RuntimeOptions, Sensor
 
     gate = ContactGate()
     gate.capture_background(background)
     rt = ForceRuntime([Sensor("s", ListSource(case.frames, case.truth), gate)], model,
-                      RuntimeOptions(deadline_ms=1e9), depth_factory=virtual_depth_stage)
+                      RuntimeOptions(deadline_ms=1e9), depth_factory=depth_factory)
     readings = []
     rt.run(on_reading=readings.append)
     raw = np.array([r.raw_force_n for r in readings])
@@ -129,17 +132,37 @@ def run_case(model, case: Case, background: np.ndarray) -> CaseReadings:
     return out
 
 
-def models_to_test(quick: bool) -> list[tuple[str, str, Path, bool]]:
-    """(config, precision, bundle path, trained?) for every bundle stability runs on."""
+#: what a bundle's weights are: shipped in edge/models, trained by the reference recipe, random (latency only)
+SHIPPED, TRAINED, RANDOM = "shipped", "trained", "random"
+
+
+def shipped_to_test() -> list[tuple[str, str, Path, str]]:
+    """(``shipped NAME (variant)``, precision, path, SHIPPED) for every bundle in edge/models,
+    found by its model.json (:func:`tactile_force.edge.scene.shipped_bundles`), the default first."""
+    from tactile_force.edge.bundle.store import read_manifest
+    from tactile_force.edge.scene import shipped_bundles
+
     out = []
+    for name, path in shipped_bundles().items():
+        m = read_manifest(path / "model.json")
+        out.append((f"shipped {name} ({m.variant.value})", m.precision.value, path, SHIPPED))
+    return out
+
+
+def models_to_test(quick: bool, shipped_only: bool = False) -> list[tuple[str, str, Path, str]]:
+    """(config, precision, bundle path, weights: SHIPPED / TRAINED / RANDOM) for every bundle
+    stability runs on; ``shipped_only``: the shipped bundles alone (no torch, no cache)."""
+    out = shipped_to_test()
+    if shipped_only:
+        return out
     for tm in trained_models():
         for p, path in tm.bundles.items():
-            out.append((tm.config.name, p, path, True))
+            out.append((tm.config.name, p, path, TRAINED))
     variants = ("rgbmod", "rgbmod+d") if quick else ("rgbmod", "d", "dmod", "rgbmod+d")
     for v in variants:
         cfg = ModelConfig(v, 0.25, 4)
         for p in (("fp32", "int8-static") if quick else PRECISIONS):
-            out.append((cfg.name, p, latency_bundle(cfg, p), False))
+            out.append((cfg.name, p, latency_bundle(cfg, p), RANDOM))
     return out
 
 
@@ -148,17 +171,23 @@ def run(args, argv) -> None:
 
     cases = build_cases(args.quick)
     bg = frame_pool().background
-    results: dict[tuple[str, str, bool], dict[str, CaseReadings]] = {}
-    for cfg, prec, path, trained in models_to_test(args.quick):
+    results: dict[tuple[str, str, str], dict[str, CaseReadings]] = {}
+    for cfg, prec, path, weights in models_to_test(args.quick, getattr(args, "shipped_only", False)):
         model = OnnxForceModel(path, threads=1)
-        results[(cfg, prec, trained)] = {c.name: run_case(model, c, bg) for c in cases}
-        tot = sum(o.nonfinite for o in results[(cfg, prec, trained)].values())
-        print(f"stability {cfg} {prec} {'trained' if trained else 'random'}: non-finite {tot}", flush=True)
+        # a shipped bundle reads through the depth stage its manifest records, as `run` builds it
+        depth = None if weights == SHIPPED and model.bundle.manifest.depth is not None else virtual_depth_stage
+        try:
+            results[(cfg, prec, weights)] = {c.name: run_case(model, c, bg, depth) for c in cases}
+        finally:
+            model.close()
+        tot = sum(o.nonfinite for o in results[(cfg, prec, weights)].values())
+        print(f"stability {cfg} {prec} {weights}: non-finite {tot}", flush=True)
     rows, total_nonfinite = [], 0
-    for (cfg, prec, trained), per in results.items():
+    for (cfg, prec, weights), per in results.items():
+        trained = weights != RANDOM
         nf = sum(o.nonfinite for o in per.values())
         total_nonfinite += nf
-        row = [cfg, prec, "trained" if trained else "random", nf]
+        row = [cfg, prec, weights, nf]
         for c in cases:
             o = per[c.name]
             if c.expect:
@@ -175,11 +204,11 @@ def run(args, argv) -> None:
     hdr += [f"monotone steps: {c.name}" for c in cases if c.sweep]
     # int8 vs fp32 at the extremes
     div_rows = []
-    for (cfg, prec, trained), per in results.items():
-        if prec != "int8-static" or (cfg, "fp32", trained) not in results:
+    for (cfg, prec, weights), per in results.items():
+        if prec != "int8-static" or (cfg, "fp32", weights) not in results:
             continue
-        ref = results[(cfg, "fp32", trained)]
-        cells = [cfg, "trained" if trained else "random"]
+        ref = results[(cfg, "fp32", weights)]
+        cells = [cfg, weights]
         for c in cases:
             if c.name.startswith(("sweep 0-1", "sweep 15-20", "rigid", "soft")):
                 a, b = per[c.name].raw, ref[c.name].raw
@@ -207,6 +236,8 @@ depth stage for depth bundles, ONNX Runtime, clamping and flags). Flags are judg
 reading: 'no_contact|below_range' means either is right (a 0.3 N press may not open the
 gate). Random-weight bundles (latency bundles) say nothing about accuracy, so their force
 flags and monotonicity are shown in (parentheses) and only their non-finite counts and
-input-validation flags (dark, NaN/inf) matter; trained bundles are the reference recipe's.
+input-validation flags (dark, NaN/inf) matter; trained bundles are the reference recipe's;
+shipped bundles are those in edge/models (each read through the depth stage its manifest
+records, as `run` reads it).
 Over-exposed frames: the runtime flags an all-white mean as invalid_input; a partly
 clipped frame is expected to read saturated (gel saturation seen) or invalid_input."""

@@ -35,14 +35,9 @@ class Machine:
 
 
 def _cpu_model() -> str:
-    try:
-        with open("/proc/cpuinfo") as f:
-            for line in f:
-                if line.startswith("model name"):
-                    return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
+    from tactile_force.edge.report.host import cpu_model
+
+    return cpu_model()
 
 
 def _ram_gib() -> float | None:

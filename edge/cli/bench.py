@@ -110,6 +110,7 @@ def main(args: argparse.Namespace) -> int:
     from tactile_force.benchmarks.harness.stats import MIN_P99_READINGS
 
     from ..files.atomic import staged_folder
+    from ..report.host import cpu_line
     from ..report.logs import quiet_loggers
 
     bundles = _check_args(args)
@@ -133,5 +134,6 @@ def main(args: argparse.Namespace) -> int:
                                cadence_frames=args.cadence_frames)
         names = [p.name for p in write_report(report, tmp)]
     print(text_table(report))
+    print(cpu_line(report.machine.cpu, report.machine.cores))  # the host every figure above was measured on
     print("wrote " + ", ".join(str(args.out / n) for n in names))
     return 0 if report.passed else 1

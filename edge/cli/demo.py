@@ -120,7 +120,10 @@ def main(args: argparse.Namespace) -> int:
     except ImportError as exc:
         raise SourceError(f"the demo needs tactile_force.edge.synthetic.VirtualDigitSource ({exc})") from None
     source = VirtualDigitSource(seed=args.seed, n_grasps=args.grasps, fps=60.0)
+    from ..report.host import cpu_line
+
     print(f"virtual DIGIT: {args.grasps} grasps, seed {args.seed} -> bundle {bundle}")
+    print(cpu_line())  # the host the latency below was measured on
     from ..files.atomic import staged_folder
 
     # claimed and judged (a link, a mount point, a read-only or unwritable parent) before the run

@@ -3,7 +3,7 @@ grasp-sequence frame source, synthetic datasets in the authors' layout, indenter
 
 from .digit import ContactSpec, SyntheticFrame, VirtualDigit, VirtualDigitOptions
 from .dome import DomeOptions, dome_height_mm
-from .generate import DatasetOptions, DatasetSummary, generate_dataset
+from .generate import DatasetOptions, DatasetSummary, generate_dataset, render_samples
 from .indenters import (
                         EXTRA_INDENTERS,
                         INDENTERS,
@@ -23,6 +23,6 @@ __all__ = [
     "ContactSpec", "DatasetOptions", "DatasetSummary", "DomeOptions", "EXTRA_INDENTERS", "ForceDistribution",
     "GelOptions", "INDENTERS", "Indenter", "IndenterSplit", "Led", "PAPER_INDENTERS", "PAPER_SPLIT_SEEDS", "PHASES",
     "STIFFNESS_CLASSES", "ShadingOptions", "SyntheticFrame", "VirtualDigit", "VirtualDigitOptions",
-    "VirtualDigitSource", "dome_height_mm", "generate_dataset", "get_indenter", "indenter_split",
+    "VirtualDigitSource", "dome_height_mm", "generate_dataset", "render_samples", "get_indenter", "indenter_split",
     "paper_indenter_names", "paper_split", "sample_contact", "split_ids",
 ]

@@ -104,6 +104,32 @@ def _plan(options: DatasetOptions) -> list[tuple[int, str, ContactSpec | None, f
     return plan
 
 
+def _render(digit: VirtualDigit, options: DatasetOptions, i: int,
+            entry: tuple[int, str, ContactSpec | None, float, str, np.ndarray]) -> tuple[np.ndarray, dict]:
+    """Sample ``i`` of the plan: its frame (320 x 240 x 3 uint8 BGR) and metadata."""
+    g, name, contact, force, phase, gain = entry
+    out = digit.render(contact, force, led_gain=gain, rng=np.random.default_rng([options.seed, 2, i]))
+    meta = dict(out.meta, phase=phase, grasp=g, seed=options.seed)
+    meta.setdefault("indenter", name)
+    meta.setdefault("stiffness", contact.stiffness if contact else None)
+    meta.setdefault("location", "none")
+    return out.frame, meta
+
+
+def render_samples(options: DatasetOptions, indenters: tuple[str, ...]) -> list[tuple[int, np.ndarray, float, dict]]:
+    """The samples of :func:`generate_dataset` with ``options`` whose indenter is one of
+    ``indenters`` (e.g. a split's test part), rendered alone: (sample number N, frame 320 x 240
+    x 3 uint8 BGR, force N, metadata), bit for bit what ``generate_dataset`` writes for them."""
+    expect(options, DatasetOptions, "render_samples.options")
+    digit = VirtualDigit(replace(options.digit, seed=options.seed))
+    out = []
+    for i, entry in enumerate(_plan(options)):
+        if entry[1] in indenters:
+            frame, meta = _render(digit, options, i, entry)
+            out.append((options.start_id + i, frame, entry[3], meta))
+    return out
+
+
 def generate_dataset(root: str | os.PathLike, options: DatasetOptions = DatasetOptions()) -> DatasetSummary:
     """Render ``options.n`` samples into ``root`` (authors' layout + meta.jsonl).
 
@@ -122,15 +148,10 @@ def generate_dataset(root: str | os.PathLike, options: DatasetOptions = DatasetO
     forces = []
     t0 = time.perf_counter()
     with AuthorsDatasetWriter(root, start_id=options.start_id) as writer:
-        for i, (g, name, contact, force, phase, gain) in progress(
-                list(enumerate(plan)), desc="synth", enabled=options.progress):
-            rng = np.random.default_rng([options.seed, 2, i])
-            out = digit.render(contact, force, led_gain=gain, rng=rng)
-            meta = dict(out.meta, phase=phase, grasp=g, seed=options.seed)
-            meta.setdefault("indenter", name)
-            meta.setdefault("stiffness", contact.stiffness if contact else None)
-            meta.setdefault("location", "none")
-            writer.write(out.frame, force, meta=meta, n=options.start_id + i)
+        for i, entry in progress(list(enumerate(plan)), desc="synth", enabled=options.progress):
+            name, force = entry[1], entry[3]
+            frame, meta = _render(digit, options, i, entry)
+            writer.write(frame, force, meta=meta, n=options.start_id + i)
             per_ind[name] = per_ind.get(name, 0) + 1
             per_stiff[str(meta["stiffness"])] = per_stiff.get(str(meta["stiffness"]), 0) + 1
             per_loc[meta["location"]] = per_loc.get(meta["location"], 0) + 1

@@ -75,6 +75,11 @@ def test_report_json_is_the_documented_contract(tmp_path, capsys):
     printed = capsys.readouterr().out
     assert "verdict:" in printed and report.bundles[0].name in printed
     assert "200 fps total p99" in printed and "200 fps total p99" in (out / "report.md").read_text()
+    # the host every figure was measured on: printed, in report.json and in report.md
+    from tactile_force.edge.report.host import cpu_line, cpu_model
+
+    assert raw["machine"]["cpu"] == cpu_model() and raw["machine"]["cpu"] in (out / "report.md").read_text()
+    assert cpu_line(cpu_model(), raw["machine"]["cores"]) in printed.splitlines()
 
 
 def _report_raw(cadence: dict | None) -> dict:

@@ -194,3 +194,6 @@ def test_demo_cli_with_virtual_digit_and_default_bundle(tmp_path, capsys):
         pytest.skip(f"default bundle not shipped yet at {default_bundle_path()}")
     assert cli_main(["demo", "--out", str(tmp_path / "d"), "--grasps", "1"]) == 0
     assert (tmp_path / "d" / "summary.json").is_file() and (tmp_path / "d" / PLOT_NAME).is_file()
+    from tactile_force.edge.report.host import cpu_line
+
+    assert cpu_line() in capsys.readouterr().out.splitlines()  # the host its latency was measured on

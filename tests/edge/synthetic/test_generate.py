@@ -16,6 +16,7 @@ from tactile_force.edge.synthetic import (
     indenter_split,
     paper_indenter_names,
     paper_split,
+    render_samples,
     split_ids,
 )
 
@@ -43,6 +44,18 @@ def test_generated_dataset_reads_back_with_metadata(small_set):
     # every paper indenter shows up once the set has >= 18 grasps
     assert set(summary.per_indenter) <= set(paper_indenter_names())
     assert sum(summary.per_indenter.values()) == 40
+
+
+def test_a_subset_renders_alone_bit_for_bit_as_the_dataset_holds_it(small_set):
+    root, _ = small_set
+    ds = AuthorsDataset(root)
+    picked = tuple(sorted({ds.meta[n]["indenter"] for n in ds.ids})[:2])
+    alone = render_samples(DatasetOptions(n=40, seed=11, frames_per_grasp=4, progress=False), picked)
+    want = [n for n in ds.ids if ds.meta[n]["indenter"] in picked]
+    assert [n for n, *_ in alone] == want and want
+    for n, frame, force, meta in alone:
+        assert np.array_equal(frame, ds.load(n).frame) and force == pytest.approx(ds.forces()[ds.ids.index(n)])
+        assert meta["indenter"] in picked and meta["grasp"] == ds.meta[n]["grasp"]
 
 
 def test_same_seed_same_files(small_set, tmp_path):
