@@ -26,7 +26,7 @@ from typing import Literal
 import numpy as np
 
 from .harness.frames import contact_frames
-from .harness.latency import BareOnnxRuntime, LatencyCase
+from .harness.latency import BareOnnxRuntime, LatencyCase, auto_trial_frames
 from .harness.machine import CpuWindow, command_line, describe_machine, header
 from .harness.sources import MemorySource, PacedMemorySource
 from .harness.stats import markdown_table
@@ -92,9 +92,7 @@ def runtime_phase(model, pool, sensors: int, n: int, prewarm: Literal["auto", Tr
     trial's frames come on top)."""
     from tactile_force.edge import ContactGate
     from tactile_force.edge.runtime import ForceRuntime, RuntimeOptions, Sensor
-    from tactile_force.edge.runtime.prewarm_decision import PATTERN, SETTLE_NS, WINDOW_NS
-
-    trial = (int((SETTLE_NS + len(PATTERN) * WINDOW_NS) / 1e9 * (fps or FPS)) + 30) if prewarm == "auto" else 0
+    trial = auto_trial_frames(fps or FPS) if prewarm == "auto" else 0
     made = []
     for k in range(sensors):
         gate = ContactGate()
@@ -107,16 +105,14 @@ def runtime_phase(model, pool, sensors: int, n: int, prewarm: Literal["auto", Tr
     rt = ForceRuntime(made, model, RuntimeOptions(deadline_ms=1e9, prewarm=prewarm, workers=workers),
                        owns_model=False)
     rt.start(1.0)
-    if trial:
-        first = -1  # set once the runtime has decided
+    first = -1 if trial else SKIP  # -1: set once the runtime has decided whether warm-ups pay
     rows: dict[str, list[tuple[float, ...]]] = {s.name: [] for s in made}
     count = 0
     c0, w0 = time.process_time(), time.perf_counter()
-    first = SKIP
     while not rt.finished:
         readings = rt.step()
         if first < 0 and rt.stats.prewarm != "trying":  # decided: count from here
-            first = 1 + max(r.frame_index for r in readings) if readings else 0
+            first = max(SKIP, 1 + max(r.frame_index for r in readings) if readings else 0)
             count, c0, w0 = 0, time.process_time(), time.perf_counter()
         for r in readings:
             count += 1

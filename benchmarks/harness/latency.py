@@ -177,6 +177,15 @@ class BareOnnxRuntime:
         self.sess.run(self.out, {n: x[k:k + 1] for n, x in self.inputs.items()})
 
 
+def auto_trial_frames(fps: float) -> int:
+    """Frames at ``fps`` that the runtime's warm-up trial (``RuntimeOptions.prewarm='auto'``,
+    edge/runtime/prewarm_decision.py) lasts, with 0.5 s to spare: a measurement of what a user
+    gets counts from the runtime's decision on."""
+    from tactile_force.edge.runtime.prewarm_decision import PATTERN, SETTLE_NS, WINDOW_NS
+
+    return int((SETTLE_NS + len(PATTERN) * WINDOW_NS) / 1e9 * fps + fps / 2)
+
+
 def measure(case: LatencyCase, pool: FramePool | None = None, clock: Clock = time.monotonic_ns,
             bare: bool = True, depth: Callable[[], object] | None = None, bare_bundle: Path | None = None,
             predictor: Predictor | None = None, fps: float | None = None) -> LatencyResult:
@@ -202,8 +211,9 @@ def measure(case: LatencyCase, pool: FramePool | None = None, clock: Clock = tim
         The model the case runs (another engine than onnxruntime).
     fps : float, optional
         Frames per second: frames arrive at this cadence (:class:`~.sources.PacedMemorySource`,
-        sleeping until each is due) instead of back to back; the ``warmup + frames`` frames
-        then take ``(warmup + frames) / fps`` seconds.
+        sleeping until each is due) instead of back to back; the runtime's warm-up trial
+        (:func:`auto_trial_frames`) comes on top of the ``warmup`` frames, so the ``frames``
+        measured ones count from its decision and take ``frames / fps`` seconds.
     """
     from tactile_force.edge import ContactGate
     from tactile_force.edge.reading import Flags
@@ -222,9 +232,10 @@ def measure(case: LatencyCase, pool: FramePool | None = None, clock: Clock = tim
     p = predictor or bundle_predictor(case)
     gate = ContactGate()
     gate.capture_background(pool.background)
-    n_total = case.warmup + case.frames
+    skip = case.warmup + (auto_trial_frames(fps) if fps is not None else 0)  # frames never measured
+    n_total = skip + case.frames
     source = (MemorySource(pool.rgb, n_total, clock) if fps is None
-              else PacedMemorySource(pool.rgb, fps, n_total, name="bench", count_from=case.warmup))
+              else PacedMemorySource(pool.rgb, fps, n_total, name="bench", count_from=skip))
     rt = ForceRuntime([Sensor("bench", source, gate)], p.model,
                       RuntimeOptions(threads=case.threads, deadline_ms=1e9, latency_window=16),
                       clock=clock, depth_factory=(depth or virtual_depth_stage) if case.needs_depth else None)
@@ -253,7 +264,7 @@ def measure(case: LatencyCase, pool: FramePool | None = None, clock: Clock = tim
         i += 1
     cpu_s, wall_s = time.process_time() - cpu0, time.perf_counter() - wall0
     rt.close()
-    t = lat[case.warmup:]
+    t = lat[skip:]
     samples = {
         "source": t[:, 0],
         "gate": t[:, 1],
@@ -267,7 +278,7 @@ def measure(case: LatencyCase, pool: FramePool | None = None, clock: Clock = tim
     note = p.note
     if n_contact < n_read:
         note = (note + f"; gate open on {n_contact}/{n_read} frames").strip("; ")
-    b = percentiles(bare_ms[case.warmup:]) if bare_runner is not None else None
+    b = percentiles(bare_ms[skip:]) if bare_runner is not None else None
     return LatencyResult(case, {k: percentiles(v) for k, v in samples.items()}, p.gmacs, note, p.where, samples, b,
                          cpu_s / wall_s if wall_s > 0 else math.nan,
                          source.missed if isinstance(source, PacedMemorySource) else int(source.stats.dropped))
