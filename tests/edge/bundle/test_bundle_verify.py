@@ -8,7 +8,7 @@ import os
 import shutil
 import sys
 
-from tactile_force.edge.bundle.store import load_bundle, write_bundle
+from tactile_force.edge.bundle.store import load_bundle
 from tactile_force.edge.cli import main as cli_main
 from tactile_force.edge.scene import default_bundle_path
 
