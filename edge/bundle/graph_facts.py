@@ -71,6 +71,8 @@ class GraphFacts:
 
 
 def _varint(buf: memoryview, i: int) -> tuple[int, int]:
+    if i < len(buf) and buf[i] < 0x80:  # one byte: most keys and lengths of a graph
+        return buf[i], i + 1
     shift = value = 0
     while True:
         if i >= len(buf):
