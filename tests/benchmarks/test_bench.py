@@ -360,8 +360,8 @@ def test_bench_refuses_a_bundle_whose_manifest_the_graph_contradicts(tmp_path):
     import hashlib
 
     from tactile_force.benchmarks.bench import bench_bundle
-    from tactile_force.edge.errors import BundleError
     from tactile_force.edge.bundle.store import write_bundle
+    from tactile_force.edge.errors import BundleError
 
     from tests.conftest import mean_manifest, mean_model_bytes
 
