@@ -1005,6 +1005,15 @@ def run_catalogue(examples: int = 100, log: Callable[[str], None] = print) -> li
         sm.mkdir()
         i19.run_cases(i19.smaller_cases(sm), t.add)
 
+        from . import robustness_bundles as rb
+
+        t = category("bundles bundle verify refuses (load_bundle, run, verify) and their records' own consistency")
+        rb_folder = base / "verify_refuses"
+        rb_folder.mkdir()
+        i19.run_cases(rb.bundle_cases(rb_folder), t.add)
+        t = category("scene paths (a folder, a FIFO, a dangling link; a path variable unset or empty)")
+        i19.run_cases(rb.scene_path_cases(base / "scene_paths"), t.add)
+
         from . import robustness_verbs as verbs
 
         inputs: verbs.Inputs | Exception

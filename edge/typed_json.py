@@ -22,9 +22,9 @@ Constraints are declared on the field, one documented way::
     source: str = field(metadata=check(choices=("camera", "replay")))
 
 (see :func:`check`). ``Path`` fields are read from non-empty strings with ``~`` and
-``$VARS`` expanded (a variable that is not set is an error naming it, never left in the
-path): input paths relative to the ``base`` folder given to :func:`from_json` (the scene
-file's folder), or under a ``prefixes`` root (``package:FILE``); output paths
+``$VARS`` expanded (a variable that is not set, or set to "", is an error naming it, never
+left in the path or expanded to nothing): input paths relative to the ``base`` folder given
+to :func:`from_json` (the scene file's folder), or under a ``prefixes`` root (``package:FILE``); output paths
 (``check(path="output")``) relative to the working directory.
 
 A dataclass may define ``check(self) -> None`` raising ``ValueError`` for rules that span
@@ -195,21 +195,24 @@ _VARIABLE = re.compile(r"\$(\w+|\{([^}]*)\})", re.ASCII)
 
 
 def unset_variable(text: str) -> str | None:
-    """The first ``$NAME`` / ``${NAME}`` in ``text`` that is not set in the environment
-    (as written, e.g. ``"$OUT_DIR"``), else None. :func:`os.path.expandvars` leaves such a
-    variable in the path as it is, so the path would point somewhere the user did not mean."""
+    """The first ``$NAME`` / ``${NAME}`` in ``text`` that is not set in the environment, or
+    is set to the empty string (as written, e.g. ``"$OUT_DIR"``), else None.
+    :func:`os.path.expandvars` leaves an unset variable in the path as it is, and an empty one
+    turns ``$DATA/backgrounds`` into ``/backgrounds``: either way the path would point
+    somewhere the user did not mean."""
     for m in _VARIABLE.finditer(text):
         name = m.group(2) if m.group(2) is not None else m.group(1)
-        if name not in os.environ:
+        if not os.environ.get(name):
             return m.group(0)
     return None
 
 
 def expand_path(text: str) -> Path:
     """``text`` with ``~`` and ``$VARS`` expanded; ValueError naming the variable when one is
-    not set (see :func:`unset_variable`)."""
+    not set or empty (see :func:`unset_variable`)."""
     if (var := unset_variable(text)) is not None:
-        raise ValueError(f"environment variable {var} is not set (in {text!r}); set it, or write the path out")
+        state = "is empty" if os.environ.get(var.strip("${}")) == "" else "is not set"
+        raise ValueError(f"environment variable {var} {state} (in {text!r}); set it, or write the path out")
     return Path(os.path.expandvars(os.path.expanduser(text)))
 
 

@@ -78,6 +78,25 @@ class DataStats:
         if self.margin < 0 or not 0 < self.max_outside_frac < 1:
             raise ValueError(f"margin={self.margin}, max_outside_frac={self.max_outside_frac}: expected margin >= 0 "
                              "and 0 < max_outside_frac < 1")
+        # every range ordered: swapped colour ranges would make every frame out of distribution
+        bad = [i for i, (lo, hi) in enumerate(zip(self.cell_lo, self.cell_hi)) if not lo <= hi]
+        if bad:
+            i = bad[0]
+            raise ValueError(f"cell_lo[{i}] {self.cell_lo[i]:g} > cell_hi[{i}] {self.cell_hi[i]:g} ({len(bad)} of {n} "
+                             "cells): expected every cell's colour range low <= high (grey levels)")
+        for name in ("cell_lo", "cell_hi", "background_thumb", "channel_mean"):
+            values = getattr(self, name)
+            if values and not all(0 <= v <= 255 for v in values):
+                raise ValueError(f"{name}: values outside 0..255; expected grey levels")
+        if any(not v >= 0 for v in self.channel_std):
+            raise ValueError(f"channel_std {self.channel_std}: expected spreads >= 0")
+        if not 0 <= self.contact_frames <= self.frames:
+            raise ValueError(f"contact_frames {self.contact_frames} of frames {self.frames}: expected "
+                             "0 <= contact_frames <= frames")
+        if self.contact_area_frac_max is not None and not 0 <= self.contact_area_frac_max <= 1:
+            raise ValueError(f"contact_area_frac_max {self.contact_area_frac_max}: expected a fraction in [0, 1]")
+        if self.deformation_max is not None and not self.deformation_max >= 0:
+            raise ValueError(f"deformation_max {self.deformation_max}: expected >= 0 grey levels")
 
 
 class DataStatsCheck:

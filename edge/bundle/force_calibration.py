@@ -185,6 +185,11 @@ class ForceCalibration:
             raise ValueError("force_calibration.raw_n: knots must be strictly increasing")
         if np.any(np.diff(f) < 0):
             raise ValueError("force_calibration.force_n: must be non-decreasing (a force calibration is monotone)")
+        rng = self.force_range_n
+        if rng and (len(rng) != 2 or not 0 <= rng[0] <= rng[1]):
+            raise ValueError(f"force_calibration.force_range_n {rng}: expected [low, high] with 0 <= low <= high (N)")
+        if self.frames < 0:
+            raise ValueError(f"force_calibration.frames {self.frames}: expected >= 0")
         if self.sensor is not None:
             self.sensor.check()
         self._cache()

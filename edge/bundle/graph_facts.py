@@ -71,6 +71,8 @@ class GraphFacts:
 
 
 def _varint(buf: memoryview, i: int) -> tuple[int, int]:
+    if i < len(buf) and buf[i] < 0x80:  # one byte: most keys and lengths of a graph
+        return buf[i], i + 1
     shift = value = 0
     while True:
         if i >= len(buf):
@@ -181,19 +183,46 @@ def graph_facts(onnx_path: str | os.PathLike) -> GraphFacts:
 
     Raises :class:`BundleError` naming the file when it is not a readable ONNX protobuf."""
     p = Path(onnx_path)
+    try:
+        data = p.read_bytes()
+    except OSError as exc:
+        raise BundleError(f"{p}: cannot read the ONNX graph ({exc.strerror})") from None
+    return facts_of_bytes(data, p)
+
+
+def facts_of_bytes(data: bytes, where: str | os.PathLike) -> GraphFacts:
+    """:func:`graph_facts` of the serialized model ``data`` (``where``: the file, named in errors)."""
     facts = GraphFacts()
     try:
-        data = memoryview(p.read_bytes())
         found = False
-        for num, wt, v in _fields(data):
+        for num, wt, v in _fields(memoryview(data)):
             if num == 7 and wt == 2:
                 assert isinstance(v, memoryview)
                 _graph(v, facts)
                 found = True
-    except (OSError, ValueError) as exc:
-        raise BundleError(f"{p}: cannot read the ONNX graph ({exc})") from None
+    except ValueError as exc:
+        raise BundleError(f"{where}: cannot read the ONNX graph ({exc})") from None
     if not found:
-        raise BundleError(f"{p}: no graph in this file; expected an ONNX model")
+        raise BundleError(f"{where}: no graph in this file; expected an ONNX model")
+    return facts
+
+
+#: Facts already read, by the graph's sha256 (the facts depend on the bytes only, and
+#: :func:`~.store.load_bundle` has checked the sha256 before it asks): a model loaded again
+#: (a runtime per sensor, a scene preflight then the build) is not parsed again.
+_FACTS_BY_SHA256: dict[str, GraphFacts] = {}
+_FACTS_KEPT = 16
+
+
+def facts_by_sha256(digest: str, data: bytes, where: str | os.PathLike) -> GraphFacts:
+    """:func:`facts_of_bytes` of ``data`` whose sha256 is ``digest``, read once per digest
+    (the last :data:`_FACTS_KEPT` kept)."""
+    facts = _FACTS_BY_SHA256.get(digest)
+    if facts is None:
+        facts = facts_of_bytes(data, where)
+        if len(_FACTS_BY_SHA256) >= _FACTS_KEPT:
+            _FACTS_BY_SHA256.pop(next(iter(_FACTS_BY_SHA256)))
+        _FACTS_BY_SHA256[digest] = facts
     return facts
 
 
@@ -246,7 +275,7 @@ def precision_problem(precision: str, facts: GraphFacts) -> str:
     found = graph_precision(facts)
     if found == precision:
         return ""
-    return f"the manifest says {precision} but the graph is {found}: {_evidence(found, facts)}"
+    return f"precision: the manifest says {precision} but the graph is {found}: {_evidence(found, facts)}"
 
 
 def input_problems(manifest, facts: GraphFacts) -> list[str]:  # manifest: Manifest
@@ -312,5 +341,5 @@ def _ops(facts: GraphFacts) -> str:
     return f"ops: {top}" if top else "no ops"
 
 
-__all__ = ["GraphFacts", "GraphInput", "bundle_precision", "graph_facts", "graph_precision", "input_problems",
-           "manifest_problems", "precision_problem"]
+__all__ = ["GraphFacts", "GraphInput", "bundle_precision", "facts_by_sha256", "facts_of_bytes", "graph_facts",
+           "graph_precision", "input_problems", "manifest_problems", "precision_problem"]

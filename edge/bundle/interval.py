@@ -137,6 +137,9 @@ class ForceInterval:
                 raise ValueError(f"interval.bins[{i}].q {b.q}: expected >= 0 or null")
             if b.n < 0:
                 raise ValueError(f"interval.bins[{i}].n {b.n}: expected >= 0")
+        if self.n < 0 or self.n_excluded < 0 or self.no_contact_n < 0:
+            raise ValueError(f"interval.n {self.n} / n_excluded {self.n_excluded} / no_contact_n {self.no_contact_n}: "
+                             "expected counts >= 0")
         if self.no_contact_high_n is not None and not self.no_contact_high_n >= 0:
             raise ValueError(f"interval.no_contact_high_n {self.no_contact_high_n}: expected >= 0 N or null")
         self._cache()

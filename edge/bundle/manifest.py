@@ -405,6 +405,10 @@ class Manifest:
             raise ValueError("inputs: two inputs share a name")
         if self.precision is Precision.FP32 and self.quantization is not None:
             raise ValueError("quantization: present on an fp32 bundle")
+        check_bundle_name(self.name)
+        if self.depth is not None and not self.variant.needs_depth:
+            raise ValueError(f"depth: a depth record on variant {self.variant.value!r}, which reads no depth image; "
+                             "expected none (depth records belong to d, dmod and rgbmod+d bundles)")
         if self.depth is not None:
             self.depth.check()
             spec = self.input(InputKind.DEPTH)
@@ -415,6 +419,25 @@ class Manifest:
     def to_json(self) -> str:
         """The manifest as pretty-printed JSON text (the current format)."""
         return json.dumps(to_json(self), indent=2, allow_nan=False) + "\n"
+
+
+#: The longest bundle ``name`` (characters): a name is shown on every line that names the bundle.
+MAX_NAME_CHARS = 128
+
+
+def check_bundle_name(name: str) -> None:
+    """Raise ValueError unless ``name`` is a plain name ("" or at most :data:`MAX_NAME_CHARS`
+    characters, no path separator, no control character or newline, not ``.`` / ``..``): it
+    is printed in every reading's log line and used as a folder name by the tools."""
+    if not name:
+        return
+    bad = next((c for c in name if ord(c) < 32 or ord(c) == 127 or c in "/\\"), None)
+    if bad is not None or name in (".", "..") or len(name) > MAX_NAME_CHARS or name.strip() != name:
+        why = (f"holds {bad!r}" if bad is not None else f"is {len(name)} characters" if len(name) > MAX_NAME_CHARS
+               else "is not a plain name")
+        raise ValueError(f"name {name[:60]!r}{'...' if len(name) > 60 else ''} {why}; expected a plain name (no path "
+                         f"separator, control character or newline, no leading or trailing space, at most "
+                         f"{MAX_NAME_CHARS} characters)")
 
 
 def check_onnx_file_name(name: str) -> None:
@@ -497,7 +520,7 @@ def _migrate_v1(raw: dict[str, Any]) -> dict[str, Any]:
     arch = dict(raw.get("architecture") or {})
     depth = arch.pop("depth", None)
     out["architecture"] = _pick(arch, Architecture)
-    if depth:
+    if depth and out.get("variant") != Variant.RGBMOD.value:  # format 1 kept one in every architecture
         out["depth"] = _pick(depth, DepthRecord)
     if raw.get("quantization"):
         out["quantization"] = _pick(raw["quantization"], Quantization)

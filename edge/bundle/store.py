@@ -1,9 +1,13 @@
 """Model bundles on disk: an ONNX file plus its manifest, the only thing edge/ needs.
 
 A bundle is a folder ``NAME/`` holding ``model.onnx`` and ``model.json``, or a loose
-``NAME.onnx`` with a sibling ``NAME.json``. :func:`load_bundle` validates the manifest
-(:mod:`.manifest`), keeps the ONNX file inside the bundle folder and refuses a file
-whose sha256 does not match.
+``NAME.onnx`` with a sibling ``NAME.json``. :func:`load_bundle` makes every check
+``tactile-force bundle verify`` makes from the files (one check, :func:`check_bundle_files`,
+for every loader): no file of the bundle resolves outside it (symbolic links), the manifest
+validates with its records (:mod:`.manifest`), the ONNX file's sha256 matches, and every
+claim the graph can contradict agrees with it (:func:`.graph_facts.manifest_problems`: the
+precision, the network input size, the inputs against the variant; the graph's facts are
+read once per sha256). :func:`write_bundle` refuses to write a bundle that would fail them.
 
 Writing is crash-safe in every window. :func:`write_bundle` writes every file into a
 hidden sibling ``.NAME.XXXX.partial`` (fsync'd, with the writer's pid), then:
@@ -94,15 +98,55 @@ def read_manifest(path: str | os.PathLike) -> Manifest:
     return manifest_from_json(raw, source=str(p))
 
 
+def files_outside(path: str | os.PathLike) -> str:
+    """Which of a bundle's files (the folder's entries, or a loose NAME.onnx / NAME.json pair)
+    resolve outside it through a symbolic link, as one line, or ""."""
+    p = Path(path)
+    if p.is_dir():
+        root, files = p.resolve(), sorted(p.iterdir())
+    else:
+        root = p.parent.resolve()
+        files = [f for f in (p.with_suffix(".onnx"), p.with_suffix(".json")) if f.exists() or f.is_symlink()]
+    bad = []
+    for f in files:
+        if not f.is_symlink():
+            continue
+        target = f.resolve()
+        if target != root and root not in target.parents:
+            bad.append(f"{f.name} -> {target}")
+    return f"file(s) resolve outside the bundle: {', '.join(bad)}" if bad else ""
+
+
+def check_bundle_files(path: Path, onnx_path: Path, manifest: Manifest, data: bytes) -> None:
+    """The one check every loader and ``bundle verify`` make of a bundle's files: the sha256
+    of ``data`` (the ONNX file's bytes) against the manifest, then every manifest claim the
+    graph can contradict (:func:`.graph_facts.manifest_problems`; the graph's facts are read
+    once per sha256). Raises :class:`BundleError` naming the bundle and the failing field."""
+    from .graph_facts import facts_by_sha256, manifest_problems
+
+    digest = hashlib.sha256(data).hexdigest()
+    if digest != manifest.sha256:
+        raise BundleError(
+            f"{onnx_path}: sha256 {digest[:12]}... does not match the manifest's {manifest.sha256[:12]}...; "
+            "the model file is corrupted, truncated or belongs to another bundle. Re-export it."
+        )
+    problems = manifest_problems(manifest, facts_by_sha256(digest, data, onnx_path))
+    if problems:
+        raise BundleError(f"{path}: the manifest contradicts its graph {onnx_path.name}: {'; '.join(problems)}; "
+                          "expected a manifest that says what the graph holds (bundle verify refuses this bundle)")
+
+
 def load_bundle(path: str | os.PathLike, verify: bool = True) -> Bundle:
-    """Read and verify a bundle.
+    """Read and verify a bundle: every check ``tactile-force bundle verify`` makes from the files.
 
     Parameters
     ----------
     path
         A bundle folder, or a loose ``NAME.onnx`` / ``NAME.json``.
     verify
-        Check the ONNX file's sha256 against the manifest (default).
+        Check the ONNX file's sha256 and the manifest's claims against the graph
+        (:func:`check_bundle_files`; default). The files' places and the manifest's own
+        consistency are checked either way.
 
     Returns
     -------
@@ -111,8 +155,8 @@ def load_bundle(path: str | os.PathLike, verify: bool = True) -> Bundle:
     Raises
     ------
     BundleError
-        With the reason: missing files, a manifest that does not validate, an ONNX file
-        outside the bundle, a hash mismatch.
+        With the reason: missing files, a file linked from outside the bundle, a manifest
+        that does not validate, a hash mismatch, a manifest claim the graph contradicts.
     """
     p = Path(path)
     if not p.exists():
@@ -120,6 +164,10 @@ def load_bundle(path: str | os.PathLike, verify: bool = True) -> Bundle:
     if not p.exists():
         raise BundleError(f"{p}: bundle not found")
     onnx_path, man_path = _locate(p)
+    outside = files_outside(p)
+    if outside:
+        raise BundleError(f"{p}: {outside}; a bundle's files must lie in its folder (copy the file in, or write the "
+                          "bundle again)")
     if not man_path.is_file():
         raise BundleError(f"{man_path}: manifest missing; a bundle needs its JSON manifest next to the ONNX file")
     manifest = read_manifest(man_path)
@@ -130,12 +178,11 @@ def load_bundle(path: str | os.PathLike, verify: bool = True) -> Bundle:
     if onnx_path.stat().st_size == 0:
         raise BundleError(f"{onnx_path}: ONNX file is empty")
     if verify:
-        digest = sha256_file(onnx_path)
-        if digest != manifest.sha256:
-            raise BundleError(
-                f"{onnx_path}: sha256 {digest[:12]}... does not match the manifest's {manifest.sha256[:12]}...; "
-                "the model file is corrupted, truncated or belongs to another bundle. Re-export it."
-            )
+        try:
+            data = onnx_path.read_bytes()
+        except OSError as exc:
+            raise BundleError(f"{onnx_path}: cannot read the ONNX file ({exc.strerror})") from None
+        check_bundle_files(p, onnx_path, manifest, data)
     return Bundle(path=p, onnx_path=onnx_path, manifest=manifest)
 
 
@@ -243,6 +290,11 @@ def _write_claimed(dest: Path, onnx_bytes: bytes, manifest: Manifest, extra_file
     except ValueError as exc:
         raise BundleError(f"{dest}: refusing to write an inconsistent manifest ({exc})") from None
     manifest_text = manifest.to_json()
+    try:  # every record as load_bundle will read it back (ordered ranges, a plain name, ...)
+        manifest_from_json(json.loads(manifest_text), source=f"{dest}/model.json")
+    except BundleError as exc:
+        raise BundleError(f"refusing to write an inconsistent manifest: {exc}") from None
+    check_bundle_files(dest, dest / "model.onnx", manifest, onnx_bytes)  # what load_bundle will check
     dest.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{dest.name}.", suffix=".partial", dir=dest.parent))
     umask = os.umask(0)

@@ -1,12 +1,14 @@
 """``tactile-force bundle show|verify``: inspect a model bundle on the robot (no torch needed).
 
-``verify`` exits 0 when no file of the bundle resolves outside it (symbolic links), the
-manifest validates, the sha256 matches, the graph fits the frame contract its manifest
-declares (inputs, variant), every manifest claim the graph can show agrees with it
-(:func:`.graph_facts.manifest_problems`, no ``onnx`` package needed: the precision,
-int8-static / int8-dynamic / fp16 / fp32, from its op types and weights; the network input
-size against ``architecture.input_scale`` / ``network_input_hw`` and the inputs' reduction;
-the inputs against the variant) and one run of the largest batch a runtime sends (16 frames,
+``verify`` exits 0 when the bundle loads as every loader loads it
+(:func:`~tactile_force.edge.bundle.store.load_bundle`: no file of the bundle resolves outside it
+(symbolic links), the manifest and its records validate (ranges ordered, a plain name, a depth
+record only where the variant reads depth), the sha256 matches, the manifest's claims agree
+with the graph: :func:`.graph_facts.manifest_problems`, no ``onnx`` package needed: the
+precision, int8-static / int8-dynamic / fp16 / fp32, from its op types and weights; the network
+input size against ``architecture.input_scale`` / ``network_input_hw`` and the inputs'
+reduction; the inputs against the variant), the graph fits the frame contract its manifest
+declares in ONNX Runtime (inputs, variant) and one run of the largest batch a runtime sends (16 frames,
 one per sensor) gives 16 finite forces; 1 when any check fails (the reasons on one line).
 """
 
@@ -132,41 +134,19 @@ def _num(x: float | None) -> str:
     return "n/a" if x is None or x != x else f"{x:.3f}"
 
 
-def files_outside(path: Path) -> str:
-    """Which of a bundle's files (the folder's entries, or a loose NAME.onnx / NAME.json pair)
-    resolve outside it through a symbolic link, as one line, or ""."""
-    p = Path(path)
-    if p.is_dir():
-        root, files = p.resolve(), sorted(p.iterdir())
-    else:
-        root = p.parent.resolve()
-        files = [f for f in (p.with_suffix(".onnx"), p.with_suffix(".json")) if f.exists() or f.is_symlink()]
-    bad = []
-    for f in files:
-        target = f.resolve()
-        if f.is_symlink() and target != root and root not in target.parents:
-            bad.append(f"{f.name} -> {target}")
-    return f"file(s) resolve outside the bundle: {', '.join(bad)}" if bad else ""
-
-
 def _verify(path: Path) -> int:
     import numpy as np
 
-    from ..bundle.graph_facts import graph_facts, manifest_problems
     from ..errors import BundleError
     from ..frames import MAX_BATCH
     from ..model.onnx_model import OnnxForceModel
 
-    outside = files_outside(path)
-    if outside:
-        raise BundleError(f"{path}: {outside}; a bundle's files must lie in its folder (copy the file in, or "
-                          "write the bundle again)")
-    model = OnnxForceModel(path, warmup=0)  # validates manifest, hash and graph contract (inputs, variant)
+    # load_bundle (in OnnxForceModel) makes the checks every loader makes: files inside the
+    # bundle, the manifest and its records, the sha256, the manifest's claims against the graph
+    # (store.check_bundle_files); ONNX Runtime then checks the graph contract (inputs, variant)
+    model = OnnxForceModel(path, warmup=0)
     try:
         b = model.bundle
-        problems = manifest_problems(b.manifest, graph_facts(b.onnx_path))
-        if problems:
-            raise BundleError(f"{b.onnx_path}: {'; '.join(problems)}")
         rgb = np.zeros((MAX_BATCH, 320, 240, 3), np.uint8) if model.rgb_name else None
         depth = np.zeros((MAX_BATCH, 320, 240, 1), np.uint8) if model.needs_depth else None
         out = model.predict(rgb, depth)

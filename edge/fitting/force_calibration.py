@@ -17,7 +17,10 @@ Refusals (:class:`CalibrationRefused`, exit code 2), thresholds in :class:`Calib
 - a non-positive least-squares slope, non-finite estimates or labels.
 
 Leave-one-out (LOO) error before and after: each frame is predicted by a map fitted on the
-other frames, so the "after" figure is what an unseen press of the same kind would get.
+other frames, so the "after" figure is what an unseen press of the same kind would get. Both
+are the error of the force a reading carries (clamped to [0, 15] N as the runtime clamps it),
+by the metric ``run`` reports: the "before" figure is ``run``'s on the same presses. The map
+itself is fitted on the unclamped raw estimates (what the runtime calibrates).
 """
 
 from __future__ import annotations
@@ -150,11 +153,16 @@ def fit_knots(raw: np.ndarray, truth: np.ndarray, method: str = "isotonic") -> t
 
 
 def _figures(pred: np.ndarray, truth: np.ndarray) -> CalibrationFigures:
-    ae = np.abs(pred - truth)
-    ok = truth > 0
-    re = ae[ok] / truth[ok]
-    return CalibrationFigures(re_mean=float(re.mean()), re_std=float(re.std()), mae_mean=float(ae.mean()),
-                              mae_std=float(ae.std()), frames=int(truth.size))
+    """RE and MAE of the forces the runtime reports for the estimates ``pred`` (N): clamped to
+    [0, 15] N as every reading is (edge/runtime/judging.py, ``Judge.estimate``), by the metric
+    ``run`` reports (:func:`~tactile_force.edge.data.metrics.error_stats`), so ``calibrate-force``'s
+    "before" figure is ``run``'s error on the same presses and bundle."""
+    from ..data.metrics import error_stats
+    from ..reading import MAX_VALID_FORCE_N
+
+    st = error_stats(np.clip(np.asarray(pred, np.float64), 0.0, MAX_VALID_FORCE_N), truth)
+    return CalibrationFigures(re_mean=st.re_mean, re_std=st.re_std, mae_mean=st.mae_mean, mae_std=st.mae_std,
+                              frames=int(st.n))
 
 
 def leave_one_out(raw: np.ndarray, truth: np.ndarray, method: str = "isotonic") -> np.ndarray:

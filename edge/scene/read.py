@@ -157,14 +157,30 @@ def parse_scene(data: dict, path: Path | None, base: Path | None = None) -> Scen
 
 
 # -- paths -----------------------------------------------------------------------------------
+def path_kind(p: Path) -> str:
+    """What ``p`` is, in words: 'a regular file', 'a folder', 'a FIFO' (socket, device), 'a
+    symbolic link to a missing ...', or 'not found' (for messages saying what was found)."""
+    from ..files.guard import special_file_kind
+
+    if not p.exists():
+        return f"a symbolic link to a missing {os.readlink(p)}" if p.is_symlink() else "not found"
+    if p.is_dir():
+        return "a folder"
+    if (special := special_file_kind(p)) is not None:
+        return f"a {special}"
+    return "a regular file" if p.is_file() else "not a regular file"
+
+
 def _readable(p: Path, want: str) -> str | None:
     """Why ``p`` cannot be read as ``want`` ('file', 'folder' or 'file or folder'), else None."""
     if not p.exists():
-        return f"{p} not found"
+        return f"{p} not found" if not p.is_symlink() else f"{p} is {path_kind(p)}"
     if want == "file" and not p.is_file():
-        return f"{p} is not a file"
+        return f"{p} is {path_kind(p)}; expected a regular file"
     if want == "folder" and not p.is_dir():
-        return f"{p} is not a folder"
+        return f"{p} is {path_kind(p)}; expected a folder"
+    if want == "file or folder" and (kind := path_kind(p)) not in ("a regular file", "a folder"):
+        return f"{p} is {kind}; expected a regular file or a folder"
     if not os.access(p, os.R_OK):
         return f"{p} is not readable (permissions)"
     return None
@@ -246,8 +262,10 @@ def check_scene(scene: Scene) -> Scene:
 def load_scene(path: str | os.PathLike, check: bool = True) -> Scene:
     """Read and validate a scene file; ``check`` also checks its paths (:func:`check_scene`)."""
     p = Path(path)
-    if not p.is_file():
-        raise SceneError(f"{p}: scene file not found")
+    kind = path_kind(p)
+    if kind != "a regular file":
+        raise SceneError(f"{p}: scene file {kind if kind == 'not found' else 'is ' + kind}; expected a regular TOML "
+                         "file (a scene, e.g. edge/scenes/replay_rgbmod.toml)")
     try:
         data = tomllib.loads(p.read_text())
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:

@@ -359,22 +359,31 @@ def test_interrupted_bench_exits_130_and_leaves_no_output(tmp_path):
         assert not [p for p in tmp_path.iterdir() if p.name.startswith(f".{out.name}.")]
 
 
-def test_bench_reports_the_precision_the_graph_holds_not_the_manifests(tmp_path):
-    """An fp32 graph whose manifest says int8-static is listed as fp32 (what bundle verify finds),
-    and the note says the manifest claims otherwise."""
+def test_bench_refuses_a_bundle_whose_manifest_the_graph_contradicts(tmp_path):
+    """An fp32 graph whose manifest says int8-static: write_bundle refuses to write it, and a
+    hand-edited one is refused by bench as by every loader (bundle verify refuses it too),
+    naming the bundle and the field; the shipped bundle's graph holds what its manifest says."""
     pytest.importorskip("onnx", reason="building the fp32 test graph needs the 'onnx' package (dev extra)")
+    import hashlib
+
     from tactile_force.benchmarks.bench import bench_bundle
-    from tactile_force.edge.bundle.graph_facts import bundle_precision
     from tactile_force.edge.bundle.store import write_bundle
+    from tactile_force.edge.errors import BundleError
 
     from tests.conftest import mean_manifest, mean_model_bytes
 
     m = mean_manifest("rgbmod", "fp32-says-int8")
     m.precision = type(m.precision)("int8-static")
-    lie = write_bundle(tmp_path / "lie", mean_model_bytes(20.0, 0.0, False), m).path
+    graph = mean_model_bytes(20.0, 0.0, False)
+    with pytest.raises(BundleError, match="precision: the manifest says int8-static but the graph is fp32"):
+        write_bundle(tmp_path / "refused", graph, m)
+    lie = tmp_path / "lie"
+    lie.mkdir()
+    m.sha256 = hashlib.sha256(graph).hexdigest()
+    (lie / "model.onnx").write_bytes(graph)
+    (lie / "model.json").write_text(m.to_json())
     pool = contact_frames(8)
-    r = bench_bundle(lie, pool, frames=5, repeats=1, warmup=1)
-    assert r.precision == "fp32" == bundle_precision(lie / "model.onnx")
-    assert "the manifest says int8-static but the graph is fp32" in r.note
+    with pytest.raises(BundleError, match=f"{lie}.*precision: the manifest says int8-static but the graph is fp32"):
+        bench_bundle(lie, pool, frames=5, repeats=1, warmup=1)
     honest = bench_bundle(default_bundle_path(), pool, frames=5, repeats=1, warmup=1)
     assert honest.precision == "int8-static" and "manifest says" not in honest.note

@@ -26,8 +26,12 @@ def _bundle(tmp_path, variant="rgbmod", precision="fp32"):
     inputs = {"rgbmod": [rgb], "d": [depth], "rgbmod+d": [rgb, depth]}[variant]
     m = Manifest(variant=variant, precision=precision, inputs=inputs, name=f"test-{variant}",
                  output=ModelOutputSpec("force"))
-    # The OAK path reads only the manifest; the ONNX bytes are a placeholder, never run.
-    return write_bundle(tmp_path / f"b-{variant.replace('+', '_')}", b"placeholder onnx bytes", m)
+    # The OAK path runs the compiled model of the archive, not this graph; the graph is a real
+    # one all the same (every loader refuses a bundle bundle verify refuses)
+    from tests.conftest import mean_model_bytes
+
+    graph = mean_model_bytes(20.0, 0.0, variant != "rgbmod", depth_scale=5.0, with_rgb=variant != "d")
+    return write_bundle(tmp_path / f"b-{variant.replace('+', '_')}", graph, m)
 
 
 def _archive(tmp_path, bundle, suffix=".dlc"):
@@ -160,7 +164,10 @@ def test_nn_archive_config_follows_the_manifest(tmp_path):
     assert inp["preprocessing"]["dai_type"] == "BGR888i"
     assert inp["preprocessing"]["scale"] == [1.0, 1.0, 1.0]  # x/255 is inside the graph
     assert model["outputs"][0]["name"] == "force"
-    depth = _archive(tmp_path, _bundle(tmp_path, "d", "int8-static"), ".dlc")
+    from tactile_force.edge.bundle.store import load_bundle
+    from tactile_force.edge.scene import shipped_bundles
+
+    depth = _archive(tmp_path, load_bundle(shipped_bundles()["d"]), ".dlc")  # a real int8-static D graph
     assert depth.config["model"]["inputs"][0]["preprocessing"]["dai_type"] == "GRAY8"
     assert depth.config["model"]["metadata"]["precision"] == "int8"
 

@@ -8,19 +8,19 @@ import os
 import shutil
 import sys
 
-from tactile_force.edge.bundle.store import load_bundle, write_bundle
+from tactile_force.edge.bundle.store import load_bundle
 from tactile_force.edge.cli import main as cli_main
 from tactile_force.edge.scene import default_bundle_path
 
 
 def _relabel(src, dest, precision: str):
-    """The same graph written as a new bundle whose manifest claims ``precision``."""
-    b = load_bundle(src)
-    m = b.manifest
-    m.precision = type(m.precision)(precision)
-    if precision == "fp32":
-        m.quantization = None
-    return write_bundle(dest, b.onnx_path.read_bytes(), m).path
+    """A copy of bundle ``src`` whose model.json claims ``precision`` (write_bundle refuses to
+    write such a bundle: the manifest is edited on disk, as a user or a broken tool would)."""
+    def edit(m):
+        m["precision"] = precision
+        if precision == "fp32":
+            m["quantization"] = None
+    return _edited(src, dest, edit)
 
 
 def _verify(path, capsys) -> tuple[int, str]:

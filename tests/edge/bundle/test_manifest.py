@@ -52,12 +52,18 @@ def test_format_1_is_migrated_into_typed_sections():
     assert m.format_version == FORMAT_VERSION and m.variant is Variant.RGBMOD and m.precision is Precision.INT8_STATIC
     assert m.error.vs_truth.re_mean == 0.078 and m.error.fp32_vs_truth.re_mean == 0.077  # was vs_ground_truth
     assert m.error_score() == 0.078  # the ladder's key: what quantize_bundle measured, never inf
-    assert m.depth.mapping == "package:virtual_digit_depth.npz" and m.depth.levels_per_px == 2.0
+    assert m.depth is None  # format 1 kept a depth record in every architecture; an RGBmod graph reads none
     assert m.architecture.width == 0.25 and m.quantization.kept_float == ["node_linear"]
     assert m.provenance.quantized_from.bundle == "a" and m.provenance.extra == {"custom_key": "kept"}
     assert m.inputs[0].kind is InputKind.RGB and m.preprocessing == ["cast uint8 -> float32"]
     again = manifest_from_json(json.loads(m.to_json()))  # format 2 round trip
     assert to_json(again) == to_json(m)
+    d = copy.deepcopy(FORMAT_1)  # a depth variant keeps its record
+    d["variant"] = "rgbmod+d"
+    d["inputs"].append({"name": "depth", "kind": "depth", "shape": [-1, 320, 240, 1], "dtype": "uint8",
+                        "layout": "NHWC", "colour_order": "GRAY"})
+    md = manifest_from_json(d)
+    assert md.depth.mapping == "package:virtual_digit_depth.npz" and md.depth.levels_per_px == 2.0
 
 
 def test_shipped_default_bundle_is_format_2_with_a_real_score():

@@ -155,7 +155,7 @@ def test_a_calibration_for_another_model_is_refused(calibrated, tmp_path):
     from tactile_force.edge import write_bundle
 
     b = load_bundle(calibrated)
-    other = b.onnx_path.read_bytes() + b"\0"  # different bytes, same graph, calibration kept
+    other = b.onnx_path.read_bytes() + b"\x32\x01x"  # a doc_string: other bytes, same graph, calibration kept
     write_bundle(tmp_path / "other", other, b.manifest)
     with pytest.raises(BundleError, match="force_calibration was fitted for model"):
         OnnxForceModel(tmp_path / "other")
@@ -219,8 +219,9 @@ def test_a_depth_bundle_is_fitted_on_the_depth_the_runtime_makes(variant, aurova
     """Presses without depth images are accepted; the fit's raw estimates are the runtime's, so the
     calibrated bundle reads on its own fit frames, through the runtime 'run' builds, exactly what
     the fitted map gives (the filt_img_depth fit read RE 0.156 through 'run' against 0.008 in the fit)."""
-    from tactile_force.edge.runtime.replay import replay_readings
+    from tactile_force.edge.data.metrics import readings_error
     from tactile_force.edge.reading import MAX_VALID_FORCE_N
+    from tactile_force.edge.runtime.replay import replay_readings
     from tactile_force.edge.scene import shipped_bundles
 
     src = shipped_bundles()[variant]
@@ -236,10 +237,40 @@ def test_a_depth_bundle_is_fitted_on_the_depth_the_runtime_makes(variant, aurova
     raw = np.array([r.raw_force_n for r in before])
     truth = np.array([r.truth_n for r in before])
     assert np.all(np.isfinite(raw)) and len(raw) == 11
-    assert cal.loo_before.re_mean == pytest.approx(float(np.mean(np.abs(raw - truth) / truth)), rel=1e-6)
+    run_error = readings_error(before)[0].overall  # what 'run' reports for these presses and this bundle
+    assert cal.loo_before.re_mean == pytest.approx(run_error.re_mean, rel=1e-9)
+    assert cal.loo_before.mae_mean == pytest.approx(run_error.mae_mean, rel=1e-9)
+    assert truth.size == 11
     after = np.array([r.force_n for r in replay_readings(out, data, background)])
     fitted = np.clip(cal.apply(raw), 0.0, MAX_VALID_FORCE_N)
     np.testing.assert_allclose(after, fitted, atol=1e-4)
+
+
+def test_calibrate_force_prints_the_error_run_prints_for_the_same_presses(aurova_dir, tmp_path, capsys):
+    """The shipped D bundle on the AUROVA presses: calibrate-force's "before (raw)" line and run's
+    "error vs truth" line are the same figures (both the readings of one replay path, clamped to
+    [0, 15] N as every reading is; they read RE 0.343 and 0.307 when calibrate-force scored the
+    unclamped raw estimates)."""
+    import re
+
+    from tactile_force.edge.scene import shipped_bundles
+
+    src = shipped_bundles()["d"]
+    background = shared_data("digit_backgrounds", HOME)
+    rc = cli_main(["calibrate-force", str(src), "--data", str(aurova_dir), "--out", str(tmp_path / "cal"),
+                   "--background", str(background)])
+    out = capsys.readouterr().out
+    assert rc == 0, out
+    before = re.search(r"before \(raw\): RE ([0-9.]+) \+- ([0-9.]+), MAE ([0-9.]+)", out)
+    rc = cli_main(["run", "--source", str(aurova_dir), "--bundle", str(src), "--background", str(background),
+                   "--out", str(tmp_path / "readings.csv")])
+    cap = capsys.readouterr()
+    out = cap.out + cap.err
+    assert rc == 0, out
+    run = re.search(r"error vs truth over 11 CNN readings: RE ([0-9.]+) \+- ([0-9.]+), MAE ([0-9.]+)", out)
+    assert before is not None and run is not None, out
+    assert before.group(1, 2) == run.group(1, 2) and float(before.group(3)) == pytest.approx(float(run.group(3)),
+                                                                                               abs=0.006)
 
 
 def test_a_depth_bundle_without_a_no_contact_image_is_refused_when_the_presses_give_none(aurova_dir, tmp_path,

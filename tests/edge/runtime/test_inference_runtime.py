@@ -72,7 +72,7 @@ def test_manifest_that_does_not_match_the_graph_is_refused(rgb_bundle, tmp_path)
     man = json.loads((bad / "model.json").read_text())
     man["inputs"][0]["name"] = "image"
     (bad / "model.json").write_text(json.dumps(man))
-    with pytest.raises(BundleError, match="'image' is not in the ONNX graph"):
+    with pytest.raises(BundleError, match=r"renamed: .*graph input 'rgb' is not a manifest input \(declared: \['image'\]\)"):
         OnnxForceModel(bad)
 
 
