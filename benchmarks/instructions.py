@@ -4,7 +4,8 @@ bare graph's call execute, counted by valgrind's callgrind, per shipped bundle.
 Per bundle (edge/models/default = RGBmod, d = D, rgbmod_d = RGBmod+D) one worker process
 sets up, the same way in every run: virtual DIGIT frames in contact (rendered once, outside
 callgrind), a ``ForceRuntime`` over them (one sensor, an in-memory source read back to back,
-its gate's background captured from no-contact frames, warm-ups off), a bare onnxruntime
+its gate's background captured from no-contact frames, warm-ups off, OpenCV on one thread as
+a scene with ``threads = 1`` runs), a bare onnxruntime
 session of the bundle's graph (one thread, sequential, the runtime's session options) fed the
 same reduced inputs the runtime hands its model, and the stages alone: the gate step
 (``GateStep.run``: the frame contract, the exposure and the contact gate) and, for D and
@@ -137,6 +138,11 @@ def _gate(background: np.ndarray):
 def worker(argv: list[str]) -> int:
     """``python -m benchmarks.instructions --worker BUNDLE FRAMES MODE N``: set up, warm every
     mode up, then run MODE N times (what callgrind counts)."""
+    import cv2
+
+    # One OpenCV thread, as a scene with threads = 1 runs (edge/scene/build.py): a thread pool's
+    # workers spin while they wait, and how long depends on the host's load, not on the code.
+    cv2.setNumThreads(1)
     bundle, frames, mode, n = Path(argv[0]), Path(argv[1]), argv[2], int(argv[3])
     setup = _Setup(bundle, frames, n if mode == "runtime" else 0)
     for m in MODES[1:]:
