@@ -194,6 +194,7 @@ class Record:
     seconds: float = 0.0
     before_commit: str = ""
     before: list = field(default_factory=list)  # the before record's variants, as in its JSON
+    notes: str = ""  # what the page says besides (e.g. counts carried over from another run)
 
 
 def _frames_file(tmp: Path, n: int = FRAMES) -> Path:
@@ -302,6 +303,8 @@ def page(rec: Record) -> str:
            "inputs; 'gate': the gate step alone (frame contract, exposure, contact gate); 'depth': the depth stage "
            "alone on the gate's reduced image and mask; 'glue + judge': runtime - bare - gate - depth (the "
            "runtime's own work, the judge, the model wrapper). M = millions of instructions per reading.", ""]
+    if rec.notes:
+        out += [rec.notes, ""]
     if before:
         out += [f"Before: commit {rec.before_commit} (the same command and CPU).", "", "## Goals", ""]
         rows = []

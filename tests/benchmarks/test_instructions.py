@@ -70,3 +70,19 @@ def test_a_runtime_reading_counts_at_least_its_bare_call(tmp_path: Path) -> None
     assert v["ratio"] == pytest.approx(counts["runtime"]["total"] / counts["bare"]["total"])
     page = (out / "instructions.md").read_text()
     assert rec["cpu"] in page and rec["commit"] in page and "RGBmod" in page
+
+
+def test_page_with_a_before_record_shows_the_goals_and_each_stage_before_and_after() -> None:
+    g = dict.fromkeys(callgrind.GROUP_NAMES, 0.0)
+    after = instructions.VariantCounts("default", "RGBmod", {"runtime": instructions.Count(4.2e6, g),
+                                                               "bare": instructions.Count(3.7e6, g),
+                                                               "gate": instructions.Count(0.4e6, g)}, 1, 4.2 / 3.7)
+    before = [{"bundle": "default", "label": "RGBmod", "setup": 1, "ratio": 5.2 / 3.7,
+               "counts": {k: {"total": t, "groups": g} for k, t in (("runtime", 5.2e6), ("bare", 3.7e6),
+                                                                     ("gate", 1.3e6))}}]
+    rec = instructions.Record("python -m benchmarks instructions", "abc1234", "Some CPU", "a machine", 200, 16, 5,
+                              "valgrind-3.19.0", [after], 1.0, "0000000", before, "a note on the counts")
+    page = instructions.page(rec)
+    assert "| RGBmod: runtime / bare graph <= 1.15x | 1.41x | 1.14x | met |" in page
+    assert "| RGBmod | gate | 1.300 | 0.400 | -0.900 | -69 % |" in page
+    assert "Some CPU" in page and "abc1234" in page and "0000000" in page and "a note on the counts" in page
