@@ -21,7 +21,10 @@ features (AVX2, AVX-512).
     python -m benchmarks instructions --out docs/benchmarks    # -> instructions.md + .json
     python -m benchmarks instructions --quick                  # a smoke run (few readings)
 
-Where valgrind is not installed the command says so and exits 0 without a page.
+Where valgrind is not installed the command says so and exits 0 without a page. Count on a
+quiet machine, one count at a time: the difference of two runs moves with anything that runs in
+one and not the other (bytecode compiled on a first run, a thread pool spinning longer under
+load).
 """
 
 from __future__ import annotations
@@ -255,6 +258,13 @@ def measure(readings: int, variants: list[str] | None = None, log=print,
     with tempfile.TemporaryDirectory(prefix="instructions-") as d:
         tmp = Path(d)
         frames = _frames_file(tmp)
+        # One run outside callgrind first, so that no counted run compiles bytecode (a run that
+        # writes the .pyc files counts tens of millions of instructions more than the next).
+        import subprocess
+
+        subprocess.run([sys.executable, "-m", f"{__package__ or 'benchmarks'}.instructions", "--worker",
+                        str(models_dir() / VARIANTS[-1][0]), str(frames), "none", "0"], env=_env(), check=True,
+                       capture_output=True, timeout=600)
         for name, label in VARIANTS:
             if variants is None or name in variants:
                 out.append(count_variant(models_dir() / name, label, frames, readings, tmp, log, modes))
