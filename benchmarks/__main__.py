@@ -8,6 +8,7 @@
     python -m benchmarks intervals --out docs/benchmarks  # every reading's error bar, measured -> intervals.md
     python -m benchmarks cadence --out docs/benchmarks    # latency at 60 fps, 1 and 8 sensors -> cadence.md
     python -m benchmarks error --out docs/benchmarks      # shipped bundles: error vs run time -> error_vs_runtime.md
+    python -m benchmarks instructions --out docs/benchmarks  # instructions per reading (callgrind) -> instructions.md
 
 Results go to ``--out DIR`` (default out/benchmarks, git-ignored); docs/benchmarks only
 when it is named. Every page states the command, the commit of the code that measured, the
@@ -92,13 +93,20 @@ def _main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     ap = argparse.ArgumentParser(prog="python -m benchmarks", description=(__doc__ or "").split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__)
-    ap.add_argument("what", nargs="?", choices=(*TASKS, "robustness", "trust", "intervals", "cadence", "error"),
-                    help="which page to make; 'robustness', 'trust', 'intervals', 'cadence' and 'error' are not part "
-                         "of 'all'")
+    ap.add_argument("what", nargs="?", choices=(*TASKS, "robustness", "trust", "intervals", "cadence", "error",
+                                               "instructions"),
+                    help="which page to make; 'robustness', 'trust', 'intervals', 'cadence', 'error' and "
+                         "'instructions' are not part of 'all'")
     ap.add_argument("--rounds", type=int, default=3,
                     help="cadence: rounds of interleaved phases (default 3; --quick: 1)")
     ap.add_argument("--bench-runs", type=int, default=10,
                     help="cadence: runs of the bench verdict on the default bundle (default 10; --quick: 2)")
+    ap.add_argument("--readings", type=int, default=0,
+                    help="instructions: readings counted per run (default 200; --quick: 20)")
+    ap.add_argument("--variants", nargs="*", default=None,
+                    help="instructions: the shipped bundles to count (default, d, rgbmod_d; default all)")
+    ap.add_argument("--before", type=Path, default=None,
+                    help="instructions: an earlier instructions.json: the page shows before / after")
     ap.add_argument("--write-default-stats", action="store_true",
                     help="trust: also store the default bundle's data_stats in edge/models/default/model.json")
     ap.add_argument("--examples", type=int, default=100,
@@ -133,6 +141,10 @@ def _main(argv: list[str] | None = None) -> int:
         from .error_vs_runtime import run as run_error
 
         return run_error(args, argv)
+    if args.what == "instructions":
+        from .instructions import run as run_instructions
+
+        return run_instructions(args, argv)
     if args.what == "intervals":
         from .intervals import intervals_page
 

@@ -15,6 +15,11 @@ PAGES = (
                    "session at the same cadence, warm-ups off / on, where the cold time goes per stage, which parts "
                    "of the warm-up pay, the bench verdict over 10 runs (+ cadence.json)",
      "python -m benchmarks cadence --out docs/benchmarks"),
+    ("instructions.md", "Work per reading in instructions (valgrind's callgrind, load-independent): each shipped "
+                        "bundle's ForceRuntime reading against its bare graph's call, per stage (gate, depth, glue "
+                        "+ judge) and per library (onnxruntime, OpenCV, numpy, OpenBLAS, libc, the interpreter), "
+                        "before / after (+ instructions.json)",
+     "python -m benchmarks instructions --out docs/benchmarks"),
     ("depth_bundles.md", "The shipped compact D and RGBmod+D bundles: error on the synthetic test split through "
                          "ForceRuntime, and their total p50 against RGBmod interleaved",
      "python -m benchmarks.depth_bundles --write docs/benchmarks/depth_bundles.md"),

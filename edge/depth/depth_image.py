@@ -17,7 +17,8 @@ import numpy as np
 
 
 def exact_depth_image(height: np.ndarray, mask: np.ndarray, levels_per_px: float, out: np.ndarray) -> np.ndarray:
-    """height: H x W float (px of indentation); mask: H x W bool; out: H x W x 1 uint8."""
+    """height: H x W float (px of indentation); mask: H x W bool, or 0/1 float32 (the same
+    image, without a cast per pixel); out: H x W x 1 uint8."""
     o = out[..., 0]
     scaled = np.multiply(height, levels_per_px, dtype=np.float32)
     np.maximum(scaled, 0.0, out=scaled)

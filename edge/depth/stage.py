@@ -187,6 +187,7 @@ class DepthStage:
             self._glut = (np.stack([gx, gy], axis=1) * np.float32(k)).astype(np.float32)
             b = self.lut.bins
             self._cell_weights = np.array([b * b, b, 1], np.float32)
+            self._cell_w = self._cell_weights.reshape(1, 3)  # the 1 x 3 matrix cv2.transform applies
             bg = frame_reducer(k, options.reduction)(self.lut.background) if k > 1 else self.lut.background
             self._bg_box = bg.astype(np.float32) - np.float32(self.lut.bins * self.lut.bin_width / 2.0)
         if options.mode == "paper" and self.mlp is None:
@@ -200,6 +201,7 @@ class DepthStage:
         self._full_mask = np.ones((h, w), dtype=bool)
         self._grid_hw = (h, w)
         self._mask_buf = np.empty((h, w), dtype=bool)  # the contact mask as bool, per frame
+        self._mask_f = np.empty((h, w), dtype=np.float32)  # and as 0/1 float32 (the LUT path)
         self._below = np.empty((h, w), np.uint8)  # the saturation count's buffers
         self._below_kept = np.empty((h, w), np.uint8)
         self._lo3 = np.zeros(3, np.float64)
@@ -357,8 +359,10 @@ class DepthStage:
         gy.fill(0.0)
         clamped = 0
         if self.lut is not None and self.options.mapping_step == 1:
-            self._lut_gradients_in_box(frame, m)  # no pixel index needed: slices of the mask's box
-            return self._integrate(m, contact_px, 0)
+            mf = self._mask_f  # the mask as 0/1 float32: products without a cast per element
+            np.copyto(mf, m)
+            self._lut_gradients_in_box(frame, m, mf)  # no pixel index needed: slices of the mask's box
+            return self._integrate(mf, contact_px, 0)
         idx = np.flatnonzero(m)
         where = idx
         if self.options.mapping_step == 2:  # evaluate at the even row/column pixel of each 2x2 cell
@@ -380,7 +384,8 @@ class DepthStage:
         return self._integrate(m, contact_px, clamped)
 
     def _integrate(self, m: np.ndarray, contact_px: int, clamped: int) -> DepthResult:
-        """Gradients in ``_gx`` / ``_gy`` -> height (Poisson solve) -> the depth image."""
+        """Gradients in ``_gx`` / ``_gy`` -> height (Poisson solve) -> the depth image; ``m``:
+        the mask, bool or 0/1 float32."""
         gx, gy = self._gx, self._gy
         if self.options.downscale > 1:
             _midpoint_slopes(gx, gy)
@@ -406,10 +411,11 @@ class DepthStage:
         back = pos[self._cell_of[idx]]
         return anchors, back
 
-    def _lut_gradients_in_box(self, frame: np.ndarray, m: np.ndarray) -> None:
+    def _lut_gradients_in_box(self, frame: np.ndarray, m: np.ndarray, mf: np.ndarray) -> None:
         """LUT gradients of the mask pixels into ``_gx`` / ``_gy`` (zero elsewhere), computed on
         the mask's bounding box with slices instead of gathering each pixel: the same cell
-        index arithmetic as ``NormalLUT.index``, so the same values."""
+        index arithmetic as ``NormalLUT.index``, so the same values. ``m``: the mask (bool),
+        ``mf``: the same as 0/1 float32."""
         import cv2
 
         assert self.lut is not None
@@ -420,9 +426,11 @@ class DepthStage:
         np.maximum(q, 0, out=q)  # clip to [0, bins - 1] (two ufuncs: np.clip's wrapper costs more here)
         np.minimum(q, self.lut.bins - 1, out=q)
         np.floor(q, out=q)  # q >= 0: floor == the integer truncation of NormalLUT.index
-        cells = (q @ self._cell_weights).astype(np.intp)  # (q0 * b + q1) * b + q2, exact in float32
-        g = np.take(self._glut, cells, axis=0)  # (h, w, 2)
-        inside = m[box]
+        # (q0 * b + q1) * b + q2 as q0 b^2 + q1 b + q2 in one pass (cv2.transform; a matrix
+        # product per row costs more): whole numbers below 2^24, exact in float32 in any order
+        cells = cv2.transform(q, self._cell_w).astype(np.intp)
+        g = np.take(self._glut, cells.reshape(h, w), axis=0)  # (h, w, 2)
+        inside = mf[box]  # x 1.0 / x 0.0: what the bool mask's product gives, bit for bit
         np.multiply(g[..., 0], inside, out=self._gx[box])
         np.multiply(g[..., 1], inside, out=self._gy[box])
 

@@ -60,3 +60,39 @@ def test_saturated_count_equals_a_plain_count_with_and_without_255_values():
     view = full[::4, ::4]  # not contiguous: no pre-check, still counted
     m = mask[::4, ::4]
     assert stage._saturated_px(view, m, int(m.sum())) == _plain_saturated(view, m)
+
+
+def _plain_lut_depth(stage: DepthStage, frame: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """The LUT path of the depth stage on its grid in its plain form: every pixel's cell, its
+    guarded gradients where the mask is, midpoint slopes, the solve, the depth image."""
+    lut = stage.lut
+    assert lut is not None
+    q = (frame.astype(np.float32) - stage._bg_box) * np.float32(1.0 / lut.bin_width)
+    qi = np.floor(np.clip(q, 0, lut.bins - 1)).astype(np.intp)
+    g = stage._glut[(qi[..., 0] * lut.bins + qi[..., 1]) * lut.bins + qi[..., 2]]
+    m = mask > 0
+    gx, gy = np.where(m, g[..., 0], 0).astype(np.float32), np.where(m, g[..., 1], 0).astype(np.float32)
+    _midpoint_slopes(gx, gy)
+    h = stage.solver.solve(gx, gy)
+    scaled = np.clip(h * np.float32(stage.options.levels_per_px), 0, 255)
+    scaled[~m] = 0
+    return np.rint(scaled).astype(np.uint8)[..., None]
+
+
+def test_lut_depth_on_the_grid_equals_its_plain_form_frame_after_frame():
+    """The stage's LUT path (cells in one transform, the mask as 0/1 floats, buffers reused
+    from frame to frame) gives the plain form's depth image exactly, for masks that move."""
+    stage = DepthStage(DepthOptions(mapping=MAPPING, downscale=4))
+    rng = np.random.default_rng(3)
+    lut = stage.lut
+    assert lut is not None
+    half = lut.bins * lut.bin_width / 2.0
+    for i in range(8):
+        frame = np.clip(stage._bg_box + half + rng.normal(0, half / 2, (80, 60, 3)), 0, 255).astype(np.uint8)
+        mask = np.zeros((80, 60), np.uint8)
+        y, x = rng.integers(0, 60), rng.integers(0, 40)
+        mask[y:y + rng.integers(5, 20), x:x + rng.integers(5, 20)] = 255
+        mask[rng.random((80, 60)) < 0.05] = 0  # holes
+        res = stage.process(frame, mask, checked=True)
+        assert res.ok, res.detail
+        assert np.array_equal(res.depth, _plain_lut_depth(stage, frame, mask)), i

@@ -1,0 +1,403 @@
+"""Work per reading, in instructions (instructions.md): what a ``ForceRuntime`` reading and the
+bare graph's call execute, counted by valgrind's callgrind, per shipped bundle.
+
+Per bundle (edge/models/default = RGBmod, d = D, rgbmod_d = RGBmod+D) one worker process
+sets up, the same way in every run: virtual DIGIT frames in contact (rendered once, outside
+callgrind), a ``ForceRuntime`` over them (one sensor, an in-memory source read back to back,
+its gate's background captured from no-contact frames, warm-ups off, OpenCV on one thread as
+a scene with ``threads = 1`` runs), a bare onnxruntime
+session of the bundle's graph (one thread, sequential, the runtime's session options) fed the
+same reduced inputs the runtime hands its model, and the stages alone: the gate step
+(``GateStep.run``: the frame contract, the exposure and the contact gate) and, for D and
+RGBmod+D, the depth stage on the gate's reduced image and mask. Each of these runs a few
+times to warm up; then one of them runs N times (``--readings``). A run with N = 0 counts
+the setup alone, so instructions per reading = (count of the run with N - count with 0) / N:
+imports, loading and warm-up cancel. The counts split by where the instructions ran (the
+object files: onnxruntime, OpenCV, numpy, OpenBLAS, libc memset / memcpy, the interpreter,
+...), and the stages by running them alone. Instruction counts do not depend on the load or
+clock of the host; the CPU model is named because libraries pick code paths by the CPU's
+features (AVX2, AVX-512).
+
+    python -m benchmarks instructions --out docs/benchmarks    # -> instructions.md + .json
+    python -m benchmarks instructions --quick                  # a smoke run (few readings)
+
+Where valgrind is not installed the command says so and exits 0 without a page. Count on a
+quiet machine, one count at a time: the difference of two runs moves with anything that runs in
+one and not the other (bytecode compiled on a first run, a thread pool spinning longer under
+load).
+"""
+
+from __future__ import annotations
+
+import argparse
+import gc
+import json
+import os
+import sys
+import tempfile
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .harness import callgrind
+from .harness.paths import repo_root
+
+#: Shipped bundles measured: (folder under edge/models, label).
+VARIANTS: tuple[tuple[str, str], ...] = (("default", "RGBmod"), ("d", "D"), ("rgbmod_d", "RGBmod+D"))
+#: What a worker run repeats N times ("none": the setup alone, the N = 0 run).
+MODES = ("none", "runtime", "bare", "gate", "depth")
+FRAMES = 16  # virtual DIGIT frames in contact, cycled
+WARMUP = 5  # runs of every mode before the measured ones, in every worker run
+READINGS = 200  # measured readings per run (--quick: 20)
+
+
+def models_dir() -> Path:
+    """edge/models of the package."""
+    from tactile_force.edge.scene import PACKAGE_DIR
+
+    return Path(PACKAGE_DIR) / "models"
+
+
+# ----------------------------------------------------------------------------- the worker
+class _Setup:
+    """Everything a worker run builds, whatever it measures (so the N = 0 run counts it)."""
+
+    def __init__(self, bundle_dir: Path, frames: Path, readings: int) -> None:
+        import onnxruntime as ort
+        from tactile_force.edge import ContactGate, load_bundle
+        from tactile_force.edge.bundle.manifest import InputKind
+        from tactile_force.edge.frames import TimedFrame
+        from tactile_force.edge.model.onnx_model import OnnxForceModel, session_options
+        from tactile_force.edge.runtime import ForceRuntime, RuntimeOptions, Sensor
+        from tactile_force.edge.runtime.depth_factory import build_depth_stage
+        from tactile_force.edge.runtime.gating import GateStep
+
+        from .harness.sources import MemorySource
+
+        z = np.load(frames)
+        rgb, background = z["rgb"], z["background"]
+        self.tfs = [TimedFrame(f, i, i, arrival_ns=i) for i, f in enumerate(rgb)]
+        bundle = load_bundle(bundle_dir)
+        manifest = bundle.manifest
+        # the runtime: one sensor, read back to back, warm-ups off
+        gate = ContactGate()
+        gate.capture_background(background)
+        model = OnnxForceModel(bundle, threads=1)
+        src = MemorySource(rgb, WARMUP + readings)
+        self.runtime = ForceRuntime([Sensor("s0", src, gate)], model,
+                                    RuntimeOptions(deadline_ms=1e9, prewarm=False))
+        # the gate step alone (its own gate), and the gate's reduced images and masks
+        self.gate_step = GateStep("gate", _gate(background))
+        ref_step = GateStep("ref", _gate(background))
+        self.depth = build_depth_stage(None, manifest) if manifest.input(InputKind.DEPTH) is not None else None
+        reduced, masks, depth = [], [], []
+        for tf in self.tfs:
+            g = ref_step.run(tf)
+            assert g is not None and g.contact and g.reduced is not None
+            reduced.append(g.reduced.copy())
+            masks.append(g.reduced_mask.copy())
+            if self.depth is not None:
+                res = self.depth.process(reduced[-1], masks[-1], checked=True)
+                assert res.ok, res.detail
+                depth.append(res.depth.copy())
+        self.reduced, self.masks = reduced, masks
+        # the bare graph: the same reduced inputs the runtime hands its model
+        self.sess = ort.InferenceSession(str(bundle.onnx_path), session_options(1), providers=["CPUExecutionProvider"])
+        self.out = [manifest.output.name]
+        feeds = []
+        for k in range(len(rgb)):
+            feed = {}
+            for s in manifest.inputs:
+                x = depth[k] if s.kind is InputKind.DEPTH else reduced[k]
+                feed[s.name] = np.ascontiguousarray(x.reshape(1, *x.shape))
+            feeds.append(feed)
+        self.feeds = feeds
+        self.k = 0
+
+    def once(self, mode: str) -> None:
+        """One reading / call of ``mode``."""
+        k = self.k % len(self.tfs)
+        self.k += 1
+        if mode == "runtime":
+            self.runtime.step()
+        elif mode == "bare":
+            self.sess.run(self.out, self.feeds[k])
+        elif mode == "gate":
+            self.gate_step.run(self.tfs[k])
+        elif mode == "depth" and self.depth is not None:
+            self.depth.process(self.reduced[k], self.masks[k], checked=True)
+
+
+def _gate(background: np.ndarray):
+    from tactile_force.edge import ContactGate
+
+    g = ContactGate()
+    g.capture_background(background)
+    return g
+
+
+def worker(argv: list[str]) -> int:
+    """``python -m benchmarks.instructions --worker BUNDLE FRAMES MODE N``: set up, warm every
+    mode up, then run MODE N times (what callgrind counts)."""
+    import cv2
+
+    # One OpenCV thread, as a scene with threads = 1 runs (edge/scene/build.py): a thread pool's
+    # workers spin while they wait, and how long depends on the host's load, not on the code.
+    cv2.setNumThreads(1)
+    bundle, frames, mode, n = Path(argv[0]), Path(argv[1]), argv[2], int(argv[3])
+    setup = _Setup(bundle, frames, n if mode == "runtime" else 0)
+    for m in MODES[1:]:
+        for _ in range(WARMUP if m != "runtime" else 0):
+            setup.once(m)
+    for _ in range(WARMUP):  # the runtime's warm-up readings, in every run
+        setup.once("runtime")
+    gc.collect()
+    for _ in range(n if mode != "none" else 0):
+        setup.once(mode)
+    return 0
+
+
+# ----------------------------------------------------------------------------- the record
+@dataclass
+class Count:
+    """Instructions per reading / call of one mode: total and per group
+    (:data:`~.harness.callgrind.GROUP_NAMES`)."""
+
+    total: float
+    groups: dict[str, float]
+
+
+@dataclass
+class VariantCounts:
+    """One bundle's counts: mode -> :class:`Count` (runtime, bare, gate, depth where it has
+    one), the setup's own count (the N = 0 run) and the ratio runtime / bare."""
+
+    bundle: str
+    label: str
+    counts: dict[str, Count]
+    setup: int
+    ratio: float
+
+
+@dataclass
+class Record:
+    """instructions.json: what was counted, how, where."""
+
+    command: str
+    commit: str
+    cpu: str
+    machine: str
+    readings: int
+    frames: int
+    warmup: int
+    valgrind: str
+    variants: list[VariantCounts] = field(default_factory=list)
+    seconds: float = 0.0
+    before_commit: str = ""
+    before: list = field(default_factory=list)  # the before record's variants, as in its JSON
+    notes: str = ""  # what the page says besides (e.g. counts carried over from another run)
+
+
+def _frames_file(tmp: Path, n: int = FRAMES) -> Path:
+    from .harness.frames import contact_frames
+
+    pool = contact_frames(n, seed=0)
+    p = tmp / "frames.npz"
+    np.savez(p, rgb=pool.rgb, background=pool.background)
+    return p
+
+
+def _env() -> dict[str, str]:
+    env = dict(os.environ)
+    for v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        env[v] = "1"
+    env["PYTHONHASHSEED"] = "0"
+    root = repo_root()
+    if root is not None:
+        env["PYTHONPATH"] = os.pathsep.join(p for p in (str(root), env.get("PYTHONPATH", "")) if p)
+    return env
+
+
+def count_variant(bundle: Path, label: str, frames: Path, readings: int, tmp: Path, log=print,
+                  modes: tuple[str, ...] = MODES[1:]) -> VariantCounts:
+    """Count one bundle: a run with N = 0 and one per mode of ``modes`` with N = ``readings``
+    (runtime and bare always; depth only for a bundle with a depth input)."""
+    from tactile_force.edge.bundle.manifest import InputKind
+    from tactile_force.edge.bundle.store import read_manifest
+
+    has_depth = read_manifest(bundle / "model.json").input(InputKind.DEPTH) is not None
+    wanted = {*modes, "runtime", "bare"}
+    modes = ("none", *(m for m in MODES[1:] if m in wanted and (m != "depth" or has_depth)))
+    env = _env()
+    profiles: dict[str, callgrind.Profile] = {}
+    for m in modes:
+        n = 0 if m == "none" else readings
+        t = time.monotonic()
+        cmd = [sys.executable, "-m", f"{__package__ or 'benchmarks'}.instructions", "--worker", str(bundle),
+               str(frames), m, str(n)]
+        profiles[m] = callgrind.run(cmd, tmp / f"callgrind.{bundle.name}.{m}.out", env)
+        log(f"  {label} {m} x{n}: {profiles[m].total:,} instructions ({time.monotonic() - t:.0f} s)")
+    base = profiles["none"]
+    bg = base.by_group()
+    counts = {}
+    for m in modes[1:]:
+        p = profiles[m]
+        g = p.by_group()
+        counts[m] = Count((p.total - base.total) / readings, {k: (g[k] - bg[k]) / readings for k in g})
+    ratio = counts["runtime"].total / counts["bare"].total
+    return VariantCounts(bundle.name, label, counts, base.total, ratio)
+
+
+def measure(readings: int, variants: list[str] | None = None, log=print,
+            modes: tuple[str, ...] = MODES[1:]) -> list[VariantCounts]:
+    """Counts of the shipped bundles named in ``variants`` (folders; default all three), the
+    modes of ``modes`` (runtime and bare always)."""
+    out = []
+    with tempfile.TemporaryDirectory(prefix="instructions-") as d:
+        tmp = Path(d)
+        frames = _frames_file(tmp)
+        # One run outside callgrind first, so that no counted run compiles bytecode (a run that
+        # writes the .pyc files counts tens of millions of instructions more than the next).
+        import subprocess
+
+        subprocess.run([sys.executable, "-m", f"{__package__ or 'benchmarks'}.instructions", "--worker",
+                        str(models_dir() / VARIANTS[-1][0]), str(frames), "none", "0"], env=_env(), check=True,
+                       capture_output=True, timeout=600)
+        for name, label in VARIANTS:
+            if variants is None or name in variants:
+                out.append(count_variant(models_dir() / name, label, frames, readings, tmp, log, modes))
+    return out
+
+
+# ----------------------------------------------------------------------------- the page
+#: The goals (issue's wording in docs): runtime / bare graph per bundle, at most.
+GOALS = {"RGBmod": 1.15, "D": 1.5, "RGBmod+D": 1.25}
+
+
+def _m(x: float) -> str:
+    return f"{x / 1e6:.3f}"
+
+
+def stages(v: VariantCounts) -> dict[str, float]:
+    """Instructions per reading by stage: runtime, bare, gate, depth, and the rest (glue +
+    judge + the model wrapper = runtime - bare - gate - depth); a stage not counted is absent."""
+    c = v.counts
+    out = {"runtime": c["runtime"].total, "bare": c["bare"].total}
+    for k in ("gate", "depth"):
+        if k in c:
+            out[k] = c[k].total
+    if "gate" in c:
+        out["glue + judge"] = out["runtime"] - out["bare"] - out["gate"] - out.get("depth", 0.0)
+    return out
+
+
+def _variants(raw: list) -> list[VariantCounts]:
+    return [VariantCounts(v["bundle"], v["label"], {k: Count(**c) for k, c in v["counts"].items()}, v["setup"],
+                          v["ratio"]) for v in raw]
+
+
+def page(rec: Record) -> str:
+    """instructions.md from the record (with before / after tables when it holds a before)."""
+    from .harness.stats import markdown_table
+
+    before = {v.label: v for v in _variants(rec.before)} if rec.before else {}
+    out = ["# Instructions per reading", "", f"Command: `{rec.command}`", "", f"Commit: {rec.commit}", "",
+           f"CPU: {rec.cpu}. Machine: {rec.machine}.", "",
+           f"Counted by {rec.valgrind} (callgrind: instructions executed, the same on any load or clock). Per "
+           f"shipped bundle, {rec.readings} readings back to back over {rec.frames} virtual DIGIT frames in contact, "
+           f"after {rec.warmup} warm-up readings, minus a run that sets up the same and measures nothing "
+           "(benchmarks/instructions.py). 'runtime': one `ForceRuntime.step` (one sensor, in-memory source, "
+           "warm-ups off); 'bare': one `InferenceSession.run` of the bundle's graph (one thread) on the same reduced "
+           "inputs; 'gate': the gate step alone (frame contract, exposure, contact gate); 'depth': the depth stage "
+           "alone on the gate's reduced image and mask; 'glue + judge': runtime - bare - gate - depth (the "
+           "runtime's own work, the judge, the model wrapper). M = millions of instructions per reading.", ""]
+    if rec.notes:
+        out += [rec.notes, ""]
+    if before:
+        out += [f"Before: commit {rec.before_commit} (the same command and CPU).", "", "## Goals", ""]
+        rows = []
+        for v in rec.variants:
+            b = before.get(v.label)
+            rows.append([f"{v.label}: runtime / bare graph <= {GOALS[v.label]:.2f}x",
+                         f"{b.ratio:.2f}x" if b else "-", f"{v.ratio:.2f}x",
+                         "met" if v.ratio <= GOALS[v.label] else "NOT met"])
+        out += [markdown_table(["goal", "before", "after", ""], rows), ""]
+    rows = []
+    for v in rec.variants:
+        st = stages(v)
+        rows.append([v.label, _m(st["runtime"]), _m(st["bare"]), f"{v.ratio:.2f}x",
+                     *(_m(st[k]) if k in st else "-" for k in ("gate", "depth", "glue + judge"))])
+    out += ["## Per reading", "",
+            markdown_table(["bundle", "runtime (M)", "bare call (M)", "runtime / bare", "gate (M)", "depth (M)",
+                            "glue + judge (M)"], rows), ""]
+    if before:
+        rows = []
+        for v in rec.variants:
+            b = before.get(v.label)
+            if b is None:
+                continue
+            sa, sb = stages(v), stages(b)
+            for k in sa:
+                if k in sb:
+                    rows.append([v.label, k, _m(sb[k]), _m(sa[k]), _m(sa[k] - sb[k]),
+                                 f"{100 * (sa[k] / sb[k] - 1):+.0f} %" if sb[k] else "-"])
+        out += ["## Per stage, before and after (M per reading)", "",
+                markdown_table(["bundle", "stage", "before", "after", "change", "change %"], rows), ""]
+    groups = callgrind.GROUP_NAMES
+    out += ["## Where the instructions ran (M per reading)", "",
+            "By object file (OpenCV: cv2 and libopencv*; numpy: its extension modules; the interpreter: "
+            "python / libpython; libc memset/memcpy: those functions of the C library, the rest of it apart).", ""]
+    rows = []
+    for v in rec.variants:
+        b = before.get(v.label)
+        for mode, cnt in v.counts.items():
+            if b is not None and mode in b.counts:
+                bc = b.counts[mode]
+                rows.append([v.label, f"{mode} (before)", _m(bc.total), *(_m(bc.groups[g]) for g in groups)])
+            rows.append([v.label, mode if b is None else f"{mode} (after)", _m(cnt.total),
+                         *(_m(cnt.groups[g]) for g in groups)])
+    out += [markdown_table(["bundle", "what", "total", *groups], rows), ""]
+    out += ["Setup (the N = 0 run, imports included): "
+            + ", ".join(f"{v.label} {v.setup / 1e9:.2f} G" for v in rec.variants)
+            + f". Counting took {rec.seconds:.0f} s.", ""]
+    return "\n".join(out) + "\n"
+
+
+def run(args: argparse.Namespace, argv: list[str]) -> int:
+    """``python -m benchmarks instructions``: count, write instructions.json then .md to ``args.out``."""
+    from tactile_force.edge.files.atomic import staged_file
+
+    from .harness.machine import command_line, describe_machine
+    from .harness.paths import source_commit
+
+    if callgrind.valgrind() is None:
+        print("instructions: valgrind is not installed on this host; instruction counts need valgrind's callgrind "
+              "(e.g. apt-get install valgrind). Nothing counted.", file=sys.stderr)
+        return 0
+    readings = args.readings if args.readings else (20 if args.quick else READINGS)
+    before_commit, before = "", []
+    if args.before is not None:  # read first: it may be the page being replaced
+        raw = json.loads(Path(args.before).read_text())
+        before_commit, before = raw["commit"], raw["variants"]
+    t0 = time.monotonic()
+    variants = measure(readings, args.variants or None)
+    m = describe_machine()
+    vg = callgrind.version()
+    rec = Record(command_line(argv), source_commit(), m.cpu, m.line(), readings, FRAMES, WARMUP, vg, variants,
+                 time.monotonic() - t0, before_commit, before)
+    args.out.mkdir(parents=True, exist_ok=True)
+    for name, text in (("instructions.json", json.dumps(asdict(rec), indent=1) + "\n"),
+                       ("instructions.md", page(rec))):
+        with staged_file(args.out / name) as tmp:
+            tmp.write_text(text)
+    print(f"wrote {args.out / 'instructions.md'}")
+    return 0
+
+
+if __name__ == "__main__":
+    if len(sys.argv) > 1 and sys.argv[1] == "--worker":
+        sys.exit(worker(sys.argv[2:]))
+    print("usage: python -m benchmarks instructions [--readings N] [--out DIR]", file=sys.stderr)
+    sys.exit(2)
