@@ -784,7 +784,7 @@ def _options_classes() -> list[type]:
 
 def _kind(annotation: Any) -> str:
     a = str(annotation).replace(" ", "")
-    return {"int": "int", "float": "float", "bool": "bool", "bool|None": "bool|None",
+    return {"int": "int", "float": "float", "bool": "bool", "bool|None": "bool|None", "int|None": "int|None",
             "Literal['auto',True,False]": "auto|bool"}.get(a, a)
 
 
@@ -797,6 +797,9 @@ def wrong_values(kind: str) -> st.SearchStrategy[Any]:
     """Values of the wrong type for a field annotated ``kind``."""
     if kind == "int":
         return st.one_of(_COMMON_WRONG, st.none(), st.booleans(),
+                         st.floats().filter(lambda v: not (math.isfinite(v) and v == int(v))))
+    if kind == "int|None":
+        return st.one_of(_COMMON_WRONG, st.booleans(),
                          st.floats().filter(lambda v: not (math.isfinite(v) and v == int(v))))
     if kind == "float":
         return st.one_of(_COMMON_WRONG, st.none(), st.booleans())
@@ -820,7 +823,8 @@ def wrong_options(draw: Callable[[st.SearchStrategy[Any]], Any]) -> tuple[str, s
 def _valid(kind: str, default: Any) -> Any:
     """A value of the right type that is not a plain Python one (numpy) or flips a flag."""
     return {"int": lambda: np.int64(default), "float": lambda: np.float64(default), "bool": lambda: not default,
-            "bool|None": lambda: True, "auto|bool": lambda: np.bool_(False)}[kind]()
+            "bool|None": lambda: True, "int|None": lambda: np.int64(1 if default is None else default),
+            "auto|bool": lambda: np.bool_(False)}[kind]()
 
 
 def _accepts(error: BaseException) -> bool:
