@@ -51,12 +51,12 @@ MAX_BLOCKS = 8
 
 def check_blocks(blocks: object) -> tuple[int, int, int, int]:
     """``blocks`` as a tuple of four ints in [1, :data:`MAX_BLOCKS`], or raise naming what was expected."""
-    ok = (isinstance(blocks, (tuple, list)) and len(blocks) == 4
-          and all(isinstance(b, int) and not isinstance(b, bool) and 1 <= b <= MAX_BLOCKS for b in blocks))
-    if not ok:
+    if not (isinstance(blocks, (tuple, list)) and len(blocks) == 4
+            and all(isinstance(b, int) and not isinstance(b, bool) and 1 <= b <= MAX_BLOCKS for b in blocks)):
         raise TactileForceError(f"blocks {blocks!r}: expected four residual-block counts per stage, each an integer "
                                 f"1..{MAX_BLOCKS}, e.g. (2, 2, 2, 2) (ResNet-18) or (1, 1, 1, 1)")
-    return tuple(int(b) for b in blocks)  # type: ignore[arg-type,return-value]
+    a, b, c, d = (int(n) for n in blocks)
+    return a, b, c, d
 
 
 def blocks_tag(blocks: tuple[int, ...]) -> str:
