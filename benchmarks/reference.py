@@ -51,6 +51,7 @@ from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
+from tactile_force.edge.errors import TactileForceError
 from tactile_force.edge.scene import PACKAGE_DIR, default_bundle_path
 
 from .harness.data import Labelled, predict_all
@@ -554,6 +555,10 @@ FAST_NOTE = ("Trained on SYNTHETIC frames from the package's virtual DIGIT only,
              "frames (or distil your model with 'tactile-force compress') before trusting its newtons.")
 
 
+class FastBundleError(TactileForceError):
+    """A trained fast bundle that misses its goal against the default; nothing was installed."""
+
+
 def install_fast_bundle(int8_bundle: Path) -> Path:
     """Install a trained :data:`FAST_MODEL` int8 bundle as edge/models/fast
     (:func:`install_shipped_bundle` with :data:`FAST_NOTE`) after checking its goals against
@@ -565,11 +570,13 @@ def install_fast_bundle(int8_bundle: Path) -> Path:
 
     fast, default = load_bundle(int8_bundle).manifest, load_bundle(default_bundle_path()).manifest
     if fast.error is None or fast.error.vs_truth is None or default.error is None or default.error.vs_truth is None:
-        raise RuntimeError("install_fast_bundle: both bundles need error.vs_truth on the synthetic test split")
+        raise FastBundleError(f"{int8_bundle}: this bundle and the default need error.vs_truth on the synthetic test "
+                              "split (make_bundles measures it)")
     re_fast, re_default = fast.error.vs_truth.re_mean, default.error.vs_truth.re_mean
     if re_fast > re_default + FAST_TARGETS["re_margin"]:
-        raise RuntimeError(f"{int8_bundle}: synthetic test RE {re_fast:.4f} is more than {FAST_TARGETS['re_margin']} "
-                           f"above the default's {re_default:.4f}; train longer (--epochs) before installing it")
+        raise FastBundleError(f"{int8_bundle}: synthetic test RE {re_fast:.4f} is more than "
+                              f"{FAST_TARGETS['re_margin']} above the default's {re_default:.4f}; train longer "
+                              "(--epochs) before installing it")
     path = install_shipped_bundle("fast", int8_bundle, FAST_NOTE)
     log(f"fast bundle: synthetic test RE {re_fast:.4f} (default {re_default:.4f})")
     return path
