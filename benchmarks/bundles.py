@@ -46,7 +46,8 @@ def latency_bundle(cfg: ModelConfig, precision: str, seed: int = 0) -> Path:
     fp32 = root / "fp32"
     if not (fp32 / "model.json").is_file():
         torch.manual_seed(seed)
-        net = ForceNet(build_model(cfg.variant, cfg.width), ModelSpec(cfg.variant, cfg.width, 1.0 / cfg.k))
+        net = ForceNet(build_model(cfg.variant, cfg.width, cfg.blocks),
+                       ModelSpec(cfg.variant, cfg.width, 1.0 / cfg.k, cfg.blocks))
         with torch.no_grad():  # outputs around 8 N, inside the valid range, so the manifest's RE is defined
             [m for m in net.modules() if isinstance(m, torch.nn.Linear)][-1].bias.add_(8.0)
         why = f"nothing: random weights (torch seed {seed}), for latency only"

@@ -29,6 +29,11 @@ make the same depth. Their graphs start at the network resolution.
 
 installs the shipped compact D and RGBmod+D bundles (edge/models/d, edge/models/rgbmod_d).
 
+    python -m benchmarks.reference --configs rgbmod-w0.125-s4-b1111 --fast-bundle
+
+trains the fast bundle's config (one residual block per stage) and installs it as
+edge/models/fast once its synthetic test RE is within 0.03 of the default's.
+
 Outputs (the cache dir, benchmarks/cache/ in a clone or $TACTILE_FORCE_CACHE; not committed):
 the synthetic dataset, depth images,
 checkpoints, fp32 / int8 bundles and a JSON record per config with the test error.
@@ -42,10 +47,11 @@ import os
 import shutil
 import sys
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
+from tactile_force.edge.errors import TactileForceError
 from tactile_force.edge.scene import PACKAGE_DIR, default_bundle_path
 
 from .harness.data import Labelled, predict_all
@@ -71,7 +77,8 @@ THREADS = int(os.environ["TACTILE_FORCE_TRAIN_THREADS"]) if os.environ.get("TACT
 
 @dataclass(frozen=True)
 class TrainConfig:
-    """One reference model: variant, width multiplier, input scale 1/k, epochs, lr."""
+    """One reference model: variant, width multiplier, input scale 1/k, epochs, lr, and
+    residual blocks per stage (ResNet-18's (2, 2, 2, 2) unless fewer; a name suffix '-b1111')."""
 
     variant: str
     width: float
@@ -80,15 +87,21 @@ class TrainConfig:
     lr: float = 1e-3
     batch: int = 64
     seed: int = 0
+    blocks: tuple[int, int, int, int] = (2, 2, 2, 2)
 
     @property
     def name(self) -> str:
-        return f"{self.variant}-w{self.width:g}-s{self.k}"
+        from tactile_force.export.zoo import blocks_tag
+
+        return f"{self.variant}-w{self.width:g}-s{self.k}{blocks_tag(self.blocks)}"
 
     @property
     def input_scale(self) -> float:
         return 1.0 / self.k
 
+
+#: The fast bundle's width multiplier (see :data:`FAST_MODEL`).
+FAST_WIDTH = 0.125
 
 #: Configs trained by default. Full resolution (k=1, width 1) is ~2.8 GMAC a frame and
 #: takes hours per epoch on a 2-core CPU: it is benchmarked for latency only.
@@ -104,12 +117,23 @@ CONFIGS: dict[str, TrainConfig] = {c.name: c for c in [
     # each int8 graph at a few hundred kB; 60 epochs: about 4 and 9 min on one shared core
     TrainConfig("d", 0.125, 4, epochs=60),
     TrainConfig("rgbmod+d", 0.125, 4, epochs=60),
+    # the fast bundle (edge/models/fast): one residual block per stage at the default's width
+    # and input, FAST_TARGETS below
+    TrainConfig("rgbmod", FAST_WIDTH, 4, epochs=30, blocks=(1, 1, 1, 1)),
 ]}
 
 #: Shipped bundle folder under edge/models -> the config it is built from.
 SHIPPED_DEPTH_BUNDLES = {"d": "d-w0.125-s4", "rgbmod_d": "rgbmod+d-w0.125-s4"}
 
 DEFAULT_MODEL = "rgbmod-w0.25-s4"
+
+#: The fast shipped bundle (edge/models/fast): RGBmod with one residual block per stage;
+#: ``--fast-bundle`` installs it. Its goals against the default, both measured on this recipe:
+#: at most FAST_TARGETS["instructions"] x the default's instructions per bare call
+#: (benchmarks/bare_instructions.py) and RE on the synthetic test split within
+#: FAST_TARGETS["re_margin"] of the default's.
+FAST_MODEL = f"rgbmod-w{FAST_WIDTH:g}-s4-b1111"
+FAST_TARGETS = {"instructions": 0.5, "re_margin": 0.03}
 
 
 def network_resolution(cfg: TrainConfig) -> bool:
@@ -316,10 +340,10 @@ def train(cfg: TrainConfig, data: Arrays, out_dir: Path) -> dict:
     from tactile_force.export import ModelSpec, save_checkpoint
     from tactile_force.export.training import Frames, TrainOptions, predict, preprocess, train_network
 
-    spec = ModelSpec(cfg.variant, cfg.width, cfg.input_scale)
+    spec = ModelSpec(cfg.variant, cfg.width, cfg.input_scale, cfg.blocks)
     # network-resolution configs get frames already reduced to the network input: the
     # network trains without an in-graph pool (input scale 1 on the reduced frames)
-    train_spec = ModelSpec(cfg.variant, cfg.width, 1.0) if network_resolution(cfg) else spec
+    train_spec = ModelSpec(cfg.variant, cfg.width, 1.0, cfg.blocks) if network_resolution(cfg) else spec
     tr, va, te = data.select("train"), data.select("val"), data.select("test")
 
     def frames(idx: np.ndarray) -> Frames:
@@ -511,16 +535,17 @@ def attach_data_stats(bundle_dir: Path, stats) -> None:
     write_bundle(bundle_dir, b.onnx_path.read_bytes(), b.manifest, overwrite=True)
 
 
-def install_shipped_bundle(folder: str, bundle: Path) -> Path:
-    """Copy a trained depth bundle into edge/models/<folder> with the synthetic-data note and
-    the default bundle's data statistics (the same training distribution, seen by the gate)."""
+def install_shipped_bundle(folder: str, bundle: Path, note: str = DEPTH_NOTE) -> Path:
+    """Copy a trained bundle into edge/models/<folder> with the synthetic-data ``note`` (the
+    depth bundles': :data:`DEPTH_NOTE`) and the default bundle's data statistics (the same
+    training distribution, seen by the gate)."""
     from tactile_force.edge.bundle.store import load_bundle, write_bundle
 
     src = load_bundle(bundle)
     m = src.manifest
     precision = "int8" if m.precision.value == "int8-static" else m.precision.value
     m.name = f"{folder.replace('_', '+')}-compact-{precision}"
-    m.provenance.note = DEPTH_NOTE
+    m.provenance.note = note
     m.provenance.trained_on = "synthetic"
     m.data_stats = default_data_stats()
     if hasattr(m, "data_stats_missing"):
@@ -537,6 +562,39 @@ def install_shipped_bundle(folder: str, bundle: Path) -> Path:
     from .interval_fit import fit_bundle
 
     fit_bundle(path)  # the reading interval of this graph (the source's was fitted on another sha256)
+    return path
+
+
+FAST_NOTE = ("Trained on SYNTHETIC frames from the package's virtual DIGIT only, like the default bundle, with one "
+             "residual block per stage (about half the default's work per reading) for hosts where the default "
+             "does not hold its latency budget. It does not know your sensor: train on your own labelled DIGIT "
+             "frames (or distil your model with 'tactile-force compress') before trusting its newtons.")
+
+
+class FastBundleError(TactileForceError):
+    """A trained fast bundle that misses its goal against the default; nothing was installed."""
+
+
+def install_fast_bundle(int8_bundle: Path) -> Path:
+    """Install a trained :data:`FAST_MODEL` int8 bundle as edge/models/fast
+    (:func:`install_shipped_bundle` with :data:`FAST_NOTE`) after checking its goals against
+    the shipped default: RE on the synthetic test split (both manifests' ``error.vs_truth``,
+    measured on the same frames with the runtime's reduction) within
+    ``FAST_TARGETS["re_margin"]``; the instruction count is checked by
+    ``python -m benchmarks.bare_instructions edge/models/default edge/models/fast``."""
+    from tactile_force.edge.bundle.store import load_bundle
+
+    fast, default = load_bundle(int8_bundle).manifest, load_bundle(default_bundle_path()).manifest
+    if fast.error is None or fast.error.vs_truth is None or default.error is None or default.error.vs_truth is None:
+        raise FastBundleError(f"{int8_bundle}: this bundle and the default need error.vs_truth on the synthetic test "
+                              "split (make_bundles measures it)")
+    re_fast, re_default = fast.error.vs_truth.re_mean, default.error.vs_truth.re_mean
+    if re_fast > re_default + FAST_TARGETS["re_margin"]:
+        raise FastBundleError(f"{int8_bundle}: synthetic test RE {re_fast:.4f} is more than "
+                              f"{FAST_TARGETS['re_margin']} above the default's {re_default:.4f}; train longer "
+                              "(--epochs) before installing it")
+    path = install_shipped_bundle("fast", int8_bundle, FAST_NOTE)
+    log(f"fast bundle: synthetic test RE {re_fast:.4f} (default {re_default:.4f})")
     return path
 
 
@@ -602,6 +660,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--shipped-bundles", action="store_true",
                     help="install the int8 bundles of " + ", ".join(SHIPPED_DEPTH_BUNDLES.values())
                     + " as edge/models/" + ", edge/models/".join(SHIPPED_DEPTH_BUNDLES))
+    ap.add_argument("--fast-bundle", action="store_true",
+                    help=f"install {FAST_MODEL}'s int8 bundle as edge/models/fast (train it: --configs {FAST_MODEL})")
     args = ap.parse_args(argv)
     if args.network_input_default:
         network_input_default()
@@ -619,7 +679,7 @@ def main(argv: list[str] | None = None) -> int:
     for name in names:
         cfg = CONFIGS[name]
         if args.epochs:
-            cfg = TrainConfig(cfg.variant, cfg.width, cfg.k, args.epochs, cfg.lr, cfg.batch, cfg.seed)
+            cfg = replace(cfg, epochs=args.epochs)
         out = cache_dir() / "models" / name
         if args.retrain or not (out / "record.json").is_file():
             train(cfg, data, out)
@@ -631,6 +691,9 @@ def main(argv: list[str] | None = None) -> int:
         for folder, name in SHIPPED_DEPTH_BUNDLES.items():
             path = install_shipped_bundle(folder, cache_dir() / "models" / name / "int8")
             log(f"installed {name} at {path}")
+    if args.fast_bundle:
+        path = install_fast_bundle(cache_dir() / "models" / FAST_MODEL / "int8")
+        log(f"installed {FAST_MODEL} at {path}")
     return 0
 
 

@@ -2,7 +2,8 @@
 
 Accepted files: ``{"state_dict": ..., "optimizer": ...}`` (the authors' format), a bare
 state_dict, either with an optional ``module.`` (DataParallel) prefix, and ours, which add
-``"tactile_force": {"variant", "width", "input_scale"}`` so export can infer the model.
+``"tactile_force": {"variant", "width", "input_scale", "blocks"}`` so export can infer the model
+(a file without ``blocks``, the authors' included, has as many blocks per stage as its keys hold).
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ import torch
 from tactile_force.edge.errors import TactileForceError
 from torch import nn
 
-from .zoo import ModelSpec, build_model, check_variant
+from .zoo import RESNET18_BLOCKS, ModelSpec, build_model, check_blocks, check_variant
 
 META_KEY = "tactile_force"
 
@@ -120,6 +121,11 @@ def check_metadata(raw: object, path: Path) -> dict:
             raise CheckpointError(f"{path}: metadata '{META_KEY}.variant': {exc}") from None
     _number(raw, "width", path, 0.0, 4.0, "a channel width multiplier in (0, 4], e.g. 0.25")
     _number(raw, "input_scale", path, 0.0, 1.0, "an input scale 1/k in (0, 1], e.g. 0.25")
+    if "blocks" in raw:
+        try:
+            check_blocks(raw["blocks"])
+        except TactileForceError as exc:
+            raise CheckpointError(f"{path}: metadata '{META_KEY}.blocks': {exc}") from None
     return dict(raw)
 
 
@@ -156,17 +162,41 @@ def load_into(model: nn.Module, state_dict: dict[str, torch.Tensor], source: str
     return model.eval()
 
 
+def blocks_in(state_dict: dict[str, torch.Tensor]) -> tuple[int, int, int, int]:
+    """Residual blocks per stage that a state_dict's keys hold (``layer<i>.<j>.`` of its first
+    trunk; RGBmod+D's two trunks have the same); ResNet-18's when it has no such keys."""
+    import re
+
+    found: dict[str, list[int]] = {}
+    for key in state_dict:
+        m = re.match(r"^(.*?)layer([1-4])\.(\d+)\.", key)
+        if m:
+            found.setdefault(m.group(1), [0, 0, 0, 0])
+            stage = found[m.group(1)]
+            stage[int(m.group(2)) - 1] = max(stage[int(m.group(2)) - 1], int(m.group(3)) + 1)
+    counts = next(iter(found.values()), None)
+    if counts is None or min(counts) < 1:
+        return RESNET18_BLOCKS
+    try:
+        return check_blocks(counts)
+    except TactileForceError:
+        return RESNET18_BLOCKS  # load_into names the keys that do not fit
+
+
 def resolve_spec(ckpt: Checkpoint, variant: str | None = None, width: float | None = None,
                  input_scale: float | None = None) -> ModelSpec:
-    """Model spec from explicit arguments, else the checkpoint's metadata, else paper defaults."""
+    """Model spec from explicit arguments, else the checkpoint's metadata, else paper defaults
+    (blocks per stage: the metadata's, else what the keys hold)."""
     meta = ckpt.meta
     v = variant or meta.get("variant")
     if not v:
         raise CheckpointError(
             f"{ckpt.path}: the file does not say which model it holds; pass --variant (rgbmod, d, dmod, rgbmod+d)")
+    blocks = check_blocks(meta["blocks"]) if "blocks" in meta else blocks_in(ckpt.state_dict)
     return ModelSpec(variant=check_variant(v),
                      width=float(width if width is not None else meta.get("width", 1.0)),
-                     input_scale=float(input_scale if input_scale is not None else meta.get("input_scale", 1.0)))
+                     input_scale=float(input_scale if input_scale is not None else meta.get("input_scale", 1.0)),
+                     blocks=blocks)
 
 
 def model_from_checkpoint(path: str | os.PathLike, variant: str | None = None, width: float | None = None,
@@ -174,7 +204,8 @@ def model_from_checkpoint(path: str | os.PathLike, variant: str | None = None, w
     """Load a checkpoint into a strictly matching model (eval mode)."""
     ckpt = load_checkpoint(path)
     spec = resolve_spec(ckpt, variant, width, input_scale)
-    model = load_into(build_model(spec.variant, spec.width), ckpt.state_dict, str(ckpt.path), spec.variant)
+    model = load_into(build_model(spec.variant, spec.width, spec.blocks), ckpt.state_dict, str(ckpt.path),
+                      spec.variant)
     return model, spec, ckpt
 
 

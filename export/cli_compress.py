@@ -25,8 +25,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="p99 budget of one batch-2 inference on this host, ms (default 1.0)")
     parser.add_argument("--seed", type=within(int, SEED), default=0, help="seed for splits, training and augmentation")
     parser.add_argument("--ladder", default=None,
-                        help="students as WIDTHxK list, e.g. 0.125x8,0.25x4 "
-                             "(default: 0.125x8,0.25x4,0.5x4,0.25x2)")
+                        help="students as WIDTHxK list, e.g. 0.125x8,0.25x4; WIDTHxKbNNNN for fewer residual blocks "
+                             "per stage, e.g. 0.25x4b1111 (default: 0.125x8,0.25x4b1111,0.25x4,0.5x4b1111,0.5x4,"
+                             "0.25x2)")
     parser.add_argument("--epochs", type=within(int, COUNT), default=30,
                         help="training epochs per student (default 30)")
     parser.add_argument("--max-frames", type=within(int, READINGS), default=6000,
@@ -132,12 +133,17 @@ def _compress_claimed(args: argparse.Namespace) -> int:
         raise
     except TactileForceError:
         raise
-    for r in result.students:
+    print("students, costliest first (p99 on this host); 'step': the RE each step down the ladder adds, against "
+          "the next costlier student (the first: against the teacher)")
+    for r in sorted(result.students, key=lambda r: -float(r["p99_ms"])):
         labels = f", vs labels RE {r['vs_labels']['re_mean']:.3f}" if "vs_labels" in r else ""
         blocks = "/".join(f"{v:.3f}" for v in r.get("p99_blocks_ms", []))
         limit = "" if r.get("within_error_limit", True) else f" (above the {args.max_vs_teacher_re:g} RE limit)"
-        print(f"{r['name']:>18}: vs teacher RE {r['vs_teacher']['re_mean']:.3f} MAE {r['vs_teacher']['mae_mean']:.3f} N"
-              f"{limit}{labels}, p99 {r['p99_ms']:.3f} ms (median of blocks {blocks})"
+        step = r.get("step", {})
+        step_l = f", vs labels {step['vs_labels_re']:+.3f}" if step.get("vs_labels_re") is not None else ""
+        print(f"{r['name']:>24}: p99 {r['p99_ms']:.3f} ms (median of blocks {blocks}), vs teacher RE "
+              f"{r['vs_teacher']['re_mean']:.3f} MAE {r['vs_teacher']['mae_mean']:.3f} N{limit}{labels}; step from "
+              f"{step.get('from', '?')}: vs teacher {step.get('vs_teacher_re', float('nan')):+.3f}{step_l}"
               f"{' (resumed)' if r.get('resumed') else ''}")
     if result.students:
         print(f"wrote {students_plot(result.students, args.budget_ms, args.out)} (students' error vs p99, budget line)")

@@ -9,7 +9,8 @@ Steps (``tactile-force compress``):
 2. run the teacher (a checkpoint, authors' format or ours, or an fp32 bundle through ONNX
    Runtime) once on all of them; its outputs are cached in ``OUT/work`` under a key made of
    the teacher's sha256 and the frames' content;
-3. train each student of the ladder (width x input scale 1/k) on the teacher's outputs with
+3. train each student of the ladder (width x input scale 1/k x residual blocks per stage:
+   narrower, smaller-input and fewer-blocks students) on the teacher's outputs with
    sensor-variability augmentation (:mod:`.training`, the same loop as the reference recipe);
    half of the labelled frames (when there are >= 10) are mixed in with their labels, the
    other half are kept for evaluation. Each finished student is saved in ``OUT/work``
@@ -18,7 +19,9 @@ Steps (``tactile-force compress``):
    frames it was distilled on), measure its p99 on this host through the runtime's model
    (:class:`OnnxForceModel`, batch 2, one thread), and its error against the teacher on
    held-out unlabelled frames and against the held-out labels;
-5. time every student in round-robin blocks (p99 = the median of its block p99s), then write
+5. time every student in round-robin blocks (p99 = the median of its block p99s), order them by
+   that p99 and record what each step down costs in error (:func:`error_steps`: RE vs the
+   teacher and vs the labels, against the next costlier student or the teacher), then write
    the most accurate student (vs the teacher) whose p99 fits the budget and whose error vs
    the teacher is within ``max_vs_teacher_re`` to ``OUT/bundle``; none: no bundle (the CLI
    exits 1 with the table). Its manifest records the teacher, both errors, the latency, the
@@ -59,7 +62,7 @@ from .onnx_export import ExportOptions, export_bundle, ort_session, run_ort
 from .preprocess import ForceNet
 from .quantize import QuantizeOptions, quantize_bundle
 from .training import Augment, Frames, TrainOptions, predict, preprocess, train_network
-from .zoo import ModelSpec
+from .zoo import RESNET18_BLOCKS, ModelSpec, blocks_tag, check_blocks
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp")
 VIDEO_SUFFIXES = (".mp4", ".avi", ".mkv", ".mov", ".webm")
@@ -71,33 +74,45 @@ class CompressError(TactileForceError, ValueError):
 
 @dataclass(frozen=True)
 class Rung:
-    """One student of the ladder: RGBmod at width multiplier ``width`` and input scale 1/``k``."""
+    """One student of the ladder: RGBmod at width multiplier ``width``, input scale 1/``k``
+    and ``blocks`` residual blocks per stage (ResNet-18's (2, 2, 2, 2) unless fewer)."""
 
     width: float
     k: int
+    blocks: tuple[int, int, int, int] = RESNET18_BLOCKS
 
     @property
     def name(self) -> str:
-        return f"rgbmod-w{self.width:g}-s{self.k}"
+        return f"rgbmod-w{self.width:g}-s{self.k}{blocks_tag(self.blocks)}"
 
     @property
     def spec(self) -> ModelSpec:
-        return ModelSpec("rgbmod", self.width, 1.0 / self.k)
+        return ModelSpec("rgbmod", self.width, 1.0 / self.k, self.blocks)
+
+    @property
+    def text(self) -> str:
+        """The rung as ``--ladder`` writes it: '0.25x4', '0.25x4b1111'."""
+        return f"{self.width:g}x{self.k}{blocks_tag(self.blocks).replace('-b', 'b')}"
 
 
-#: The default ladder, cheapest first (0.005 to 0.06 GMAC a frame).
-DEFAULT_LADDER: tuple[Rung, ...] = (Rung(0.125, 8), Rung(0.25, 4), Rung(0.5, 4), Rung(0.25, 2))
+#: The default ladder, cheapest first (0.005 to 0.06 GMAC a frame): narrower, smaller-input
+#: and fewer-blocks students (one block per stage: about half the layers of ResNet-18's two).
+DEFAULT_LADDER: tuple[Rung, ...] = (Rung(0.125, 8), Rung(0.25, 4, (1, 1, 1, 1)), Rung(0.25, 4),
+                                    Rung(0.5, 4, (1, 1, 1, 1)), Rung(0.5, 4), Rung(0.25, 2))
 
 
 def parse_ladder(text: str) -> tuple[Rung, ...]:
-    """'0.25x4,0.5x4' -> rungs (width x k)."""
+    """'0.25x4,0.5x4b1111' -> rungs (width x k, optionally b + four blocks-per-stage digits)."""
     rungs = []
     for part in (p.strip() for p in text.split(",") if p.strip()):
         try:
-            w, k = part.lower().split("x")
-            rungs.append(Rung(float(w), int(k)))
-        except ValueError:
-            raise CompressError(f"--ladder {part!r}: expected WIDTHxK, e.g. 0.25x4 (width 0.25, input 1/4)") from None
+            head, _, tail = part.lower().partition("b")
+            w, k = head.split("x")
+            blocks = tuple(int(c) for c in tail) if tail else RESNET18_BLOCKS
+            rungs.append(Rung(float(w), int(k), check_blocks(blocks)))
+        except (ValueError, TactileForceError):
+            raise CompressError(f"--ladder {part!r}: expected WIDTHxK or WIDTHxKbNNNN, e.g. 0.25x4 (width 0.25, "
+                                "input 1/4) or 0.25x4b1111 (the same with one residual block per stage)") from None
     if not rungs:
         raise CompressError("--ladder: no students given")
     return tuple(rungs)
@@ -398,7 +413,8 @@ def compress_model(o: CompressOptions) -> CompressResult:
             res = train_network(rung.spec, train, val, topt, show_progress=show, desc=rung.name)
             save_checkpoint(sdir / "model.pth", res.model, rung.spec,
                             extra={"trained_on": f"distilled from {teacher.description} on {frames_desc}"})
-            rec = {"name": rung.name, "width": rung.width, "k": rung.k, "best_epoch": res.best_epoch,
+            rec = {"name": rung.name, "width": rung.width, "k": rung.k, "blocks": list(rung.blocks),
+                   "best_epoch": res.best_epoch,
                    "train_seconds": round(res.seconds, 1), "epochs": o.epochs, "resumed": False}
             _write_json(rec_path, rec)
         if "vs_teacher" not in rec:
@@ -409,6 +425,7 @@ def compress_model(o: CompressOptions) -> CompressResult:
             o.on_student(rec)
 
     time_students(records, o.latency_runs, o.latency_blocks)
+    error_steps(records)
     fits = [r for r in records if r["p99_ms"] <= o.budget_ms]
     for rec in records:
         rec["within_error_limit"] = bool(rec["vs_teacher"]["re_mean"] <= o.max_vs_teacher_re)
@@ -472,6 +489,28 @@ def time_students(records: list[dict], runs: int, blocks: int) -> None:
         r["p99_blocks_ms"] = [round(v, 4) for v in p]
 
 
+def error_steps(records: list[dict]) -> list[dict]:
+    """What each step down the ladder costs in error, cheapest last: ``records`` ordered by
+    measured p99 (costliest first); each gets ``step`` = {"from": the next costlier student's
+    name, or "teacher" for the costliest, "vs_teacher_re": its RE vs the teacher minus that
+    one's (the teacher's own is 0), "vs_labels_re": the same against the labels (the teacher's
+    RE vs the labels for the first step), or None without labels}. Returns the ordered list."""
+    ordered = sorted(records, key=lambda r: -float(r["p99_ms"]))
+    prev: dict | None = None
+    for rec in ordered:
+        vl = rec.get("vs_labels")
+        if prev is None:
+            base_t, base_l = 0.0, rec.get("teacher_vs_labels", {}).get("re_mean") if vl else None
+        else:
+            base_t, base_l = prev["vs_teacher"]["re_mean"], prev.get("vs_labels", {}).get("re_mean")
+        rec["step"] = {"from": prev["name"] if prev is not None else "teacher",
+                       "vs_teacher_re": float(rec["vs_teacher"]["re_mean"] - base_t),
+                       "vs_labels_re": (float(vl["re_mean"] - base_l) if vl is not None and base_l is not None
+                                        else None)}
+        prev = rec
+    return ordered
+
+
 def _write_final(dest: Path, chosen: dict, teacher: Teacher, frames_desc: str, n_frames: int, o: CompressOptions,
                  records: list[dict], data_stats: DataStats) -> Bundle:
     src = load_bundle(chosen["bundle"])
@@ -512,6 +551,7 @@ __all__ = [
     "CompressResult",
     "Rung",
     "compress_model",
+    "error_steps",
     "load_teacher",
     "parse_ladder",
     "read_frames",

@@ -46,7 +46,7 @@ from .checkpoint import model_from_checkpoint
 from .graph import name_nodes
 from .macs import count_macs
 from .preprocess import ForceNet, default_reduction, network_hw, scale_factor
-from .zoo import VARIANT_INPUTS, ModelSpec, check_variant
+from .zoo import RESNET18_BLOCKS, VARIANT_INPUTS, ModelSpec, check_variant
 
 OUTPUT_NAME = "force_n"
 
@@ -241,7 +241,8 @@ def _resolve(source, options: ExportOptions) -> tuple[nn.Module, ModelSpec, dict
     if isinstance(source, nn.Module):
         if not options.variant:
             raise TactileForceError("export of an in-memory model needs ExportOptions.variant")
-        spec = ModelSpec(check_variant(options.variant), float(options.width or 1.0), float(options.input_scale or 1.0))
+        spec = ModelSpec(check_variant(options.variant), float(options.width or 1.0), float(options.input_scale or 1.0),
+                         getattr(source, "blocks", RESNET18_BLOCKS))
         return source.eval(), spec, {"checkpoint": "in-memory module"}
     path = Path(source)
     model, spec, ckpt = model_from_checkpoint(path, options.variant, options.width, options.input_scale)
@@ -307,7 +308,7 @@ def export_bundle(source: str | os.PathLike | nn.Module, dest: str | os.PathLike
                                   network_input_hw=[r, c], head_folded=options.fold_head,
                                   preprocess_folded=options.fold_preprocess, gmacs=round(macs.gmacs, 4),
                                   macs_by_op=dict(macs.by_op), params=int(sum(p.numel() for p in model.parameters())),
-                                  opset=written_opset(onnx_bytes)),
+                                  opset=written_opset(onnx_bytes), blocks=list(spec.blocks)),
         parity=Parity(max_abs_diff_n=parity.max_abs_diff_n, mean_abs_diff_n=parity.mean_abs_diff_n,
                       frames=parity.frames, data=parity.source, tolerance_n=parity.tolerance_n),
         **_data_stats_fields(data if options.parity_data is not None else None, options.background),

@@ -151,7 +151,7 @@ class ForceNet(nn.Module):
     def __init__(self, model: nn.Module, spec: ModelSpec, folded: bool = False, fold_preprocess: bool = False,
                  network_input: bool = False) -> None:
         super().__init__()
-        self.spec = ModelSpec(check_variant(spec.variant), float(spec.width), float(spec.input_scale))
+        self.spec = ModelSpec(check_variant(spec.variant), float(spec.width), float(spec.input_scale), spec.blocks)
         self.model = fold_input_scaling(model, self.spec.variant) if fold_preprocess else model
         self.input_names = VARIANT_INPUTS[self.spec.variant]
         self.fold_preprocess = fold_preprocess

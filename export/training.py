@@ -27,7 +27,7 @@ from tactile_force.edge.errors import OptionsError
 from torch import nn
 
 from .preprocess import ForceNet
-from .zoo import ModelSpec, build_model
+from .zoo import ModelSpec, blocks_tag, build_model
 
 
 @dataclass(frozen=True)
@@ -172,7 +172,7 @@ def train_network(spec: ModelSpec, train: Frames, val: Frames, options: TrainOpt
     torch.manual_seed(o.seed)
     np.random.seed(o.seed)
     torch.set_num_threads(o.threads or os.cpu_count() or 1)
-    net = ForceNet(build_model(spec.variant, spec.width), spec)
+    net = ForceNet(build_model(spec.variant, spec.width, spec.blocks), spec)
     x_tr, x_va = preprocess(net, train.inputs), preprocess(net, val.inputs)
     y_tr = torch.from_numpy(np.asarray(train.targets, np.float32))
     y_va = np.asarray(val.targets, np.float64)
@@ -231,6 +231,7 @@ def train_network(spec: ModelSpec, train: Frames, val: Frames, options: TrainOpt
 
 
 def spec_name(spec: ModelSpec) -> str:
-    """'rgbmod-w0.25-s4' for a ModelSpec (the reference recipe's naming)."""
+    """'rgbmod-w0.25-s4' for a ModelSpec (the reference recipe's naming; '-b1111' appended for
+    fewer blocks per stage than ResNet-18's)."""
     k = round(1.0 / spec.input_scale)
-    return f"{spec.variant}-w{spec.width:g}-s{k}"
+    return f"{spec.variant}-w{spec.width:g}-s{k}{blocks_tag(spec.blocks)}"

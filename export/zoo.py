@@ -3,6 +3,9 @@
 State-dict keys match torchvision's ``ResNet(BasicBlock, [2, 2, 2, 2])`` exactly, so the
 paper authors' checkpoints load with ``strict=True``. A width multiplier scales every
 channel count (64w, 128w, 256w, 512w) for compact variants; ``width=1`` is the paper's.
+``blocks`` sets the residual blocks per stage (layer1..layer4): ResNet-18's ``(2, 2, 2, 2)``
+by default, fewer (e.g. ``(1, 1, 1, 1)``) for cheaper students; the keys of the blocks that
+remain are torchvision's (``layer1.0.*``).
 
 Every model maps network input tensors (float, NCHW, RGB or depth in [0, 1]) to the force
 in N, shape (N, 1), and exposes its pooled features and its purely linear head so the
@@ -40,6 +43,27 @@ def check_variant(variant: str) -> str:
     return v
 
 
+#: Residual blocks per stage of ResNet-18 (the paper's trunk; what a record without ``blocks`` means).
+RESNET18_BLOCKS: tuple[int, int, int, int] = (2, 2, 2, 2)
+#: Most blocks a stage may have (ResNet-34's largest stage has 6).
+MAX_BLOCKS = 8
+
+
+def check_blocks(blocks: object) -> tuple[int, int, int, int]:
+    """``blocks`` as a tuple of four ints in [1, :data:`MAX_BLOCKS`], or raise naming what was expected."""
+    if not (isinstance(blocks, (tuple, list)) and len(blocks) == 4
+            and all(isinstance(b, int) and not isinstance(b, bool) and 1 <= b <= MAX_BLOCKS for b in blocks)):
+        raise TactileForceError(f"blocks {blocks!r}: expected four residual-block counts per stage, each an integer "
+                                f"1..{MAX_BLOCKS}, e.g. (2, 2, 2, 2) (ResNet-18) or (1, 1, 1, 1)")
+    a, b, c, d = (int(n) for n in blocks)
+    return a, b, c, d
+
+
+def blocks_tag(blocks: tuple[int, ...]) -> str:
+    """'' for ResNet-18's blocks, else '-b1111' (a name suffix for students and configs)."""
+    return "" if tuple(blocks) == RESNET18_BLOCKS else "-b" + "".join(str(b) for b in blocks)
+
+
 def channels(width: float) -> tuple[int, int, int, int]:
     """Channel counts of layer1..layer4 for a width multiplier (64, 128, 256, 512 at 1.0)."""
     if not (0 < float(width) <= 4):
@@ -68,21 +92,28 @@ class BasicBlock(nn.Module):
         return self.relu(out + identity)
 
 
+def _stage(c_in: int, c_out: int, stride: int, n: int) -> nn.Sequential:
+    """One stage: a (strided) block c_in -> c_out, then n - 1 blocks c_out -> c_out."""
+    return nn.Sequential(BasicBlock(c_in, c_out, stride), *(BasicBlock(c_out, c_out) for _ in range(n - 1)))
+
+
 class ResNet18(nn.Module):
     """ResNet-18 trunk with torchvision key names; ``fc_out=None`` leaves out ``fc``."""
 
-    def __init__(self, in_channels: int = 3, width: float = 1.0, fc_out: int | None = 1000) -> None:
+    def __init__(self, in_channels: int = 3, width: float = 1.0, fc_out: int | None = 1000,
+                 blocks: tuple[int, int, int, int] = RESNET18_BLOCKS) -> None:
         super().__init__()
         c1, c2, c3, c4 = channels(width)
+        n1, n2, n3, n4 = self.blocks = check_blocks(blocks)
         self.width = float(width)
         self.conv1 = nn.Conv2d(in_channels, c1, 7, 2, 3, bias=False)
         self.bn1 = nn.BatchNorm2d(c1)
         self.relu = nn.ReLU(inplace=True)
         self.maxpool = nn.MaxPool2d(3, 2, 1)
-        self.layer1 = nn.Sequential(BasicBlock(c1, c1), BasicBlock(c1, c1))
-        self.layer2 = nn.Sequential(BasicBlock(c1, c2, 2), BasicBlock(c2, c2))
-        self.layer3 = nn.Sequential(BasicBlock(c2, c3, 2), BasicBlock(c3, c3))
-        self.layer4 = nn.Sequential(BasicBlock(c3, c4, 2), BasicBlock(c4, c4))
+        self.layer1 = _stage(c1, c1, 1, n1)
+        self.layer2 = _stage(c1, c2, 2, n2)
+        self.layer3 = _stage(c2, c3, 2, n3)
+        self.layer4 = _stage(c3, c4, 2, n4)
         self.avgpool = nn.AdaptiveAvgPool2d((1, 1))
         if fc_out is not None:
             self.fc = nn.Linear(c4, fc_out)
@@ -118,8 +149,9 @@ class RGBmod(ResNet18):
     the RGB branch of RGBmod+D. ``in_channels=1`` and ``unused_heads=False`` give Dmod.
     """
 
-    def __init__(self, width: float = 1.0, in_channels: int = 3, fc4_out: int = 1, unused_heads: bool = True) -> None:
-        super().__init__(in_channels, width, fc_out=1000 if unused_heads else None)
+    def __init__(self, width: float = 1.0, in_channels: int = 3, fc4_out: int = 1, unused_heads: bool = True,
+                 blocks: tuple[int, int, int, int] = RESNET18_BLOCKS) -> None:
+        super().__init__(in_channels, width, fc_out=1000 if unused_heads else None, blocks=blocks)
         _, c2, c3, c4 = channels(width)
         self.fc1 = nn.Linear(c2, c4)
         self.fc2 = nn.Linear(c3, c4)
@@ -151,8 +183,8 @@ class D(ResNet18):
     Saved without a key prefix (the authors train and save ``D().model``).
     """
 
-    def __init__(self, width: float = 1.0) -> None:
-        super().__init__(in_channels=1, width=width, fc_out=1)
+    def __init__(self, width: float = 1.0, blocks: tuple[int, int, int, int] = RESNET18_BLOCKS) -> None:
+        super().__init__(in_channels=1, width=width, fc_out=1, blocks=blocks)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         return self.fc(self.pooled(x))
@@ -167,8 +199,8 @@ class D(ResNet18):
 class Dmod(RGBmod):
     """D with RGBmod's multi-level head (not in the authors' code): 1-channel input."""
 
-    def __init__(self, width: float = 1.0) -> None:
-        super().__init__(width=width, in_channels=1, fc4_out=1, unused_heads=False)
+    def __init__(self, width: float = 1.0, blocks: tuple[int, int, int, int] = RESNET18_BLOCKS) -> None:
+        super().__init__(width=width, in_channels=1, fc4_out=1, unused_heads=False, blocks=blocks)
 
 
 class RGBmodD(nn.Module):
@@ -179,11 +211,12 @@ class RGBmodD(nn.Module):
     There is no activation between fc1 and fc2, so the whole head is linear.
     """
 
-    def __init__(self, width: float = 1.0) -> None:
+    def __init__(self, width: float = 1.0, blocks: tuple[int, int, int, int] = RESNET18_BLOCKS) -> None:
         super().__init__()
         c4 = channels(width)[3]
-        self.model_rgb = RGBmod(width=width, in_channels=3, fc4_out=c4, unused_heads=True)
-        self.model_mask = ResNet18(in_channels=1, width=width, fc_out=1000)
+        self.blocks = check_blocks(blocks)
+        self.model_rgb = RGBmod(width=width, in_channels=3, fc4_out=c4, unused_heads=True, blocks=blocks)
+        self.model_mask = ResNet18(in_channels=1, width=width, fc_out=1000, blocks=blocks)
         m = self.model_mask
         self.model_mask_before_fc = nn.Sequential(m.conv1, m.bn1, m.relu, m.maxpool, m.layer1, m.layer2, m.layer3,
                                                   m.layer4, m.avgpool)
@@ -213,19 +246,26 @@ _CLASSES = {"rgbmod": RGBmod, "d": D, "dmod": Dmod, "rgbmod+d": RGBmodD}
 
 @dataclass(frozen=True)
 class ModelSpec:
-    """What identifies an architecture: variant, width multiplier, input scale (1/k)."""
+    """What identifies an architecture: variant, width multiplier, input scale (1/k) and
+    residual blocks per stage (ResNet-18's (2, 2, 2, 2) unless fewer)."""
 
     variant: str
     width: float = 1.0
     input_scale: float = 1.0
+    blocks: tuple[int, int, int, int] = RESNET18_BLOCKS
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "blocks", check_blocks(self.blocks))
 
     def as_dict(self) -> dict:
-        return {"variant": self.variant, "width": self.width, "input_scale": self.input_scale}
+        return {"variant": self.variant, "width": self.width, "input_scale": self.input_scale,
+                "blocks": list(self.blocks)}
 
 
-def build_model(variant: str, width: float = 1.0) -> nn.Module:
-    """A freshly initialised model of ``variant`` ('rgbmod', 'd', 'dmod', 'rgbmod+d')."""
-    return _CLASSES[check_variant(variant)](width=width)
+def build_model(variant: str, width: float = 1.0, blocks: tuple[int, int, int, int] = RESNET18_BLOCKS) -> nn.Module:
+    """A freshly initialised model of ``variant`` ('rgbmod', 'd', 'dmod', 'rgbmod+d') with
+    ``blocks`` residual blocks per stage."""
+    return _CLASSES[check_variant(variant)](width=width, blocks=check_blocks(blocks))
 
 
 def fold_linear_head(model: nn.Module) -> tuple[torch.Tensor, torch.Tensor]:

@@ -42,29 +42,39 @@ VARIANT_LABEL = {"rgbmod": "RGBmod", "d": "D", "dmod": "Dmod", "rgbmod+d": "RGBm
 
 @dataclass(frozen=True)
 class ModelConfig:
-    """A network: variant, width multiplier, input scale 1/k."""
+    """A network: variant, width multiplier, input scale 1/k, residual blocks per stage."""
 
     variant: str
     width: float
     k: int
+    blocks: tuple[int, int, int, int] = (2, 2, 2, 2)
 
     @property
     def name(self) -> str:
-        return f"{self.variant}-w{self.width:g}-s{self.k}"  # as benchmarks.reference names it
+        tag = "" if self.blocks == (2, 2, 2, 2) else "-b" + "".join(str(b) for b in self.blocks)
+        return f"{self.variant}-w{self.width:g}-s{self.k}{tag}"  # as benchmarks.reference names it
 
     @property
     def label(self) -> str:
         size = "full res" if (self.width == 1 and self.k == 1) else f"w{self.width:g}, 1/{self.k}"
+        if self.blocks != (2, 2, 2, 2):
+            size += ", blocks " + "".join(str(b) for b in self.blocks)
         return f"{VARIANT_LABEL[self.variant]} ({size})"
 
 
 def parse_config(name: str) -> ModelConfig:
-    """'rgbmod-w0.25-s4' / 'rgbmod+d-w1-s1' -> ModelConfig."""
+    """'rgbmod-w0.25-s4' / 'rgbmod+d-w1-s1' / 'rgbmod-w0.125-s4-b1111' -> ModelConfig."""
+    import re
+
+    m = re.fullmatch(r"(rgbmod|d|dmod|rgbmod\+d)-w([0-9.]+)-s([0-9]+)(?:-b([1-8]{4}))?", name)
     try:
-        v, w, s = name.rsplit("-", 2)
-        return ModelConfig(v, float(w[1:]), int(s[1:]))
-    except (ValueError, IndexError):
-        raise ValueError(f"model config {name!r}: expected VARIANT-wWIDTH-sK, e.g. rgbmod-w0.25-s4") from None
+        if m is None:
+            raise ValueError(name)
+        blocks = tuple(int(c) for c in m.group(4)) if m.group(4) else (2, 2, 2, 2)
+        return ModelConfig(m.group(1), float(m.group(2)), int(m.group(3)), blocks)  # type: ignore[arg-type]
+    except ValueError:
+        raise ValueError(f"model config {name!r}: expected VARIANT-wWIDTH-sK[-bNNNN], e.g. rgbmod-w0.25-s4 or "
+                         "rgbmod-w0.125-s4-b1111") from None
 
 
 @dataclass(frozen=True)

@@ -178,7 +178,9 @@ class ModelOutputSpec:
 
 @dataclass
 class Architecture:
-    """The network: ResNet-18 family, width multiplier and input scale."""
+    """The network: ResNet-18 family, width multiplier, input scale and residual blocks per
+    stage (``blocks``: ResNet-18's [2, 2, 2, 2], what a manifest without the field means;
+    fewer for cheaper networks)."""
 
     family: str = "resnet18"
     width: float = 1.0
@@ -190,10 +192,14 @@ class Architecture:
     params: int | None = None
     opset: int | None = None
     macs_by_op: dict[str, int] = field(default_factory=dict)
+    blocks: list[int] = field(default_factory=lambda: [2, 2, 2, 2])
 
     def check(self) -> None:
         if not 0 < self.width <= 4 or not 0 < self.input_scale <= 1:
             raise ValueError(f"width {self.width} / input_scale {self.input_scale} out of range (0, 4] / (0, 1]")
+        if len(self.blocks) != 4 or not all(1 <= b <= 8 for b in self.blocks):
+            raise ValueError(f"blocks {self.blocks}: expected four residual-block counts per stage, each 1..8, "
+                             "e.g. [2, 2, 2, 2] (ResNet-18)")
         if len(self.network_input_hw) != 2 or min(self.network_input_hw) < 1:
             raise ValueError(f"network_input_hw {self.network_input_hw}: expected [rows, cols] >= 1")
 

@@ -128,7 +128,7 @@ def test_a_student_too_far_from_its_teacher_is_not_written(setup, tmp_path, caps
                    "--max-vs-teacher-re", "1e-6"])
     captured = capsys.readouterr()
     assert rc == 1 and not (out / "bundle").exists()
-    assert "rgbmod-w0.125-s8: vs teacher RE" in captured.out and "above the 1e-06 RE limit" in captured.out
+    assert "rgbmod-w0.125-s8: p99 " in captured.out and "vs teacher RE" in captured.out and "above the 1e-06 RE limit" in captured.out
     assert "max-vs-teacher-re" in captured.err and "Traceback" not in captured.err
     summary = json.loads((out / "compress.json").read_text())
     assert summary["chosen"] is None and summary["students"][0]["within_error_limit"] is False

@@ -18,7 +18,7 @@ from tactile_force.export import ModelSpec, save_checkpoint
 from tactile_force.export.compress import CompressOptions, Rung, compress_model
 from tactile_force.export.training import Frames, TrainOptions, train_network
 
-LADDER = (Rung(0.125, 8), Rung(0.25, 8))
+LADDER = (Rung(0.125, 8), Rung(0.25, 8, (1, 1, 1, 1)))  # narrower / fewer blocks per stage
 
 
 @pytest.fixture(scope="module")
@@ -64,7 +64,17 @@ def test_interrupt_keeps_finished_students_and_a_rerun_resumes(setup, tmp_path):
     assert not (out / "bundle").exists()
 
     result = compress_model(_options(setup, out))
-    assert [r["name"] for r in result.students] == ["rgbmod-w0.125-s8", "rgbmod-w0.25-s8"]
+    assert [r["name"] for r in result.students] == ["rgbmod-w0.125-s8", "rgbmod-w0.25-s8-b1111"]
+    assert [load_bundle(r["bundle"]).manifest.architecture.blocks for r in result.students] == [[2, 2, 2, 2],
+                                                                                                 [1, 1, 1, 1]]
+    # the error each step down the ladder (by measured p99) costs, against the labels too
+    first, second = sorted(result.students, key=lambda r: -r["p99_ms"])
+    assert first["step"]["from"] == "teacher" and second["step"]["from"] == first["name"]
+    assert first["step"]["vs_teacher_re"] == pytest.approx(first["vs_teacher"]["re_mean"])
+    assert second["step"]["vs_teacher_re"] == pytest.approx(second["vs_teacher"]["re_mean"]
+                                                            - first["vs_teacher"]["re_mean"])
+    assert first["step"]["vs_labels_re"] == pytest.approx(first["vs_labels"]["re_mean"]
+                                                          - first["teacher_vs_labels"]["re_mean"])
     assert [r["resumed"] for r in result.students] == [True, False]
     assert cache.stat().st_mtime_ns == stamp  # teacher outputs came from the cache
     assert (records[0].parent / "model.pth").stat().st_mtime_ns == ckpt_stamp  # not retrained
@@ -84,6 +94,7 @@ def test_interrupt_keeps_finished_students_and_a_rerun_resumes(setup, tmp_path):
     assert result.chosen["name"] == chosen["name"]
     summary = json.loads(result.summary_path.read_text())
     assert summary["chosen"] == chosen["name"] and len(summary["students"]) == 2
+    assert all("step" in r and "blocks" in r for r in summary["students"])
 
     # the written bundle runs in the runtime on labelled frames
     _, _, lab, _ = setup
