@@ -37,7 +37,7 @@ def configure(p: argparse.ArgumentParser) -> None:
         "  tactile-force bench                                  # every shipped bundle\n"
         "  tactile-force bench --bundle my_int8 my_fp32         # your bundles\n"
         "  tactile-force bench --bundle B --data LABELLED_DIR --background NO_CONTACT.png   # + error (RE, MAE)\n"
-        "  tactile-force bench --fps 30 --cadence-frames 1000   # a 30 fps sensor, 1000 readings at it (~34 s each)\n"
+        "  tactile-force bench --fps 30 --cadence-frames 1000   # a 30 fps sensor, 1000 readings at it (~39 s each)\n"
         "At 60 fps the default 300 cadence readings (and a warm-up) take ~5.5 s per bundle, on top of the\n"
         f"back-to-back run; a p99 verdict needs >= {FLOOR} readings at the cadence (back to back is not judged).\n"
         "Writes report.json (docs/bench.md), report.md and pareto.png (error vs p99 at the cadence) to --out.\n"
@@ -107,6 +107,7 @@ def _inputs(args: argparse.Namespace, bundles: list[Path]) -> list[tuple[str, Pa
 
 def main(args: argparse.Namespace) -> int:
     from tactile_force.benchmarks.bench import WARMUP, run_bench, text_table, write_report
+    from tactile_force.benchmarks.harness.latency import auto_trial_frames
     from tactile_force.benchmarks.harness.stats import MIN_P99_READINGS
 
     from ..files.atomic import staged_folder
@@ -119,7 +120,8 @@ def main(args: argparse.Namespace) -> int:
     command = "tactile-force bench " + " ".join(shlex.quote(a) for a in sys.argv[2:]) \
         if len(sys.argv) > 1 and sys.argv[1] == "bench" else "tactile-force bench"
     print(f"bench: {len(bundles)} bundle(s), {args.frames} frames each back to back and {args.cadence_frames} at "
-          f"{args.fps:g} fps (~{(args.cadence_frames + WARMUP) / args.fps:.1f} s each), {args.threads} "
+          f"{args.fps:g} fps (~{(args.cadence_frames + WARMUP + auto_trial_frames(args.fps)) / args.fps:.1f} s each), "
+          f"{args.threads} "
           f"thread(s), budget {args.budget_ms:g} ms at {args.fps:g} fps"
           + (f", error on {args.data}" if args.data else ""), file=sys.stderr)
     if args.cadence_frames < MIN_P99_READINGS:
