@@ -44,12 +44,17 @@ def load_model(scene: Scene) -> tuple[Any, str, list[str]]:
 
 
 def open_outputs(scene: Scene, p99_ms=None) -> list:
-    """One writer per [[output]]; MCAP, ROS 2 and Zenoh writers are imported only when used."""
+    """One writer per [[output]], in the scene's order; MCAP, ROS 2 and Zenoh writers are
+    imported only when used. The networked ones are opened first, so one that cannot start (no
+    Zenoh router) leaves no file output behind."""
     from ..outputs import CsvWriter, JsonlWriter, StdoutWriter
 
     sinks: list = []
+    opened: dict[int, object] = {}
+    order = sorted(range(len(scene.outputs)), key=lambda i: scene.outputs[i].kind not in ("ros2", "zenoh"))
     try:
-        for o in scene.outputs:
+        for i in order:
+            o = scene.outputs[i]
             path = o.path if o.path is not None else Path(os.devnull)  # file outputs always have one
             if o.kind == "csv":
                 sinks.append(CsvWriter(path, fsync=o.fsync))
@@ -72,11 +77,12 @@ def open_outputs(scene: Scene, p99_ms=None) -> list:
                                             mode=o.mode, retry=o.retry))
             else:
                 sinks.append(StdoutWriter(live=o.live, p99_ms=p99_ms, every=4))
+            opened[i] = sinks[-1]
     except BaseException:
         for s in sinks:
             s.close()
         raise
-    return sinks
+    return [opened[i] for i in range(len(scene.outputs))]
 
 
 class LearningWatch:

@@ -366,6 +366,7 @@ def test_no_router_names_the_endpoint(tmp_path, monkeypatch, capsys):
     rc = cli_main(["run", "--source", "virtual", "--zenoh", endpoint, "--out", "r.csv", "--max-frames", "3"])
     err = capsys.readouterr().err
     assert rc == 2 and endpoint in err and "Traceback" not in err
+    assert not (tmp_path / "r.csv").exists()  # the networked output opens first: no half result left
     # with --zenoh-retry the run goes on without a router: the CSV gets every reading
     rc = cli_main(["run", "--source", "virtual", "--zenoh", endpoint, "--zenoh-retry", "--out", "kept.csv",
                    "--max-frames", "12"])
