@@ -1014,6 +1014,13 @@ def run_catalogue(examples: int = 100, log: Callable[[str], None] = print) -> li
         t = category("scene paths (a folder, a FIFO, a dangling link; a path variable unset or empty)")
         i19.run_cases(rb.scene_path_cases(base / "scene_paths"), t.add)
 
+        from . import robustness_runtime as rr
+
+        t = category("runtime parts (a gate, its copy or a source under two sensors; a source lacking read / close)")
+        i19.run_cases(rr.part_cases(), t.add)
+        t = category("warm-up waits (frames stamped with the wall clock or a clock 0.3 s ahead, warm-ups on)")
+        i19.run_cases(rr.wait_cases(), t.add)
+
         from . import robustness_verbs as verbs
 
         inputs: verbs.Inputs | Exception
