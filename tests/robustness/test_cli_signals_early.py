@@ -20,7 +20,8 @@ def test_sigint_while_starting_exits_130_without_traceback(tmp_path, verb):
     for delay in EARLY_DELAYS:
         rc, err = signal_at_start(args, signal.SIGINT, delay)
         assert rc == 130 and "Traceback" not in err, (delay, rc, err[-600:])
-        assert "interrupted" in err, (delay, err[-300:])
+        # one line while starting; on a slow host the signal may come once the verb runs: its own clean stop
+        assert "interrupted" in err or "stopped by SIGINT" in err, (delay, err[-300:])
         assert not (tmp_path / "bench").exists()  # no half result
 
 
