@@ -145,16 +145,22 @@ PHASES: dict[str, tuple[int, Literal["auto", True, False]]] = {
     f"{HAND} sensors, after": (HAND, "auto")}
 
 
-def measure(rounds: int, n: int) -> list[Round]:
+def setup():
+    """The frames in contact, a bare session and the runtime's model of the default bundle,
+    OpenCV on one thread as a scene with ``threads = 1`` runs (edge/scene/build.py)."""
     import cv2
     from tactile_force.edge import OnnxForceModel, load_bundle
     from tactile_force.edge.scene import default_bundle_path
 
-    cv2.setNumThreads(1)  # as a scene with threads = 1 runs (edge/scene/build.py)
+    cv2.setNumThreads(1)
     pool = contact_frames()
     path = default_bundle_path()
     bare = BareOnnxRuntime(LatencyCase(None, "fp32", bundle=path), pool)
-    model = OnnxForceModel(load_bundle(path), threads=1)
+    return pool, bare, OnnxForceModel(load_bundle(path), threads=1)
+
+
+def measure(rounds: int, n: int) -> list[Round]:
+    pool, bare, model = setup()
     out = []
     for k in range(rounds):
         rd = Round(np.empty(0))

@@ -20,9 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .cadence import HAND, Phase, reference, runtime_phase
-from .harness.frames import contact_frames
-from .harness.latency import BareOnnxRuntime, LatencyCase
+from .cadence import HAND, Phase, reference, runtime_phase, setup
 from .harness.machine import CpuWindow, describe_machine, header
 from .harness.stats import markdown_table
 
@@ -32,15 +30,7 @@ LAYOUTS = {"phase-shifted": True, "in phase": False}
 
 def measure(rounds: int, n: int, prewarm: bool) -> list[dict]:
     """Per round: the reference p50 (ms) and one 8-sensor phase per worker count."""
-    import cv2
-    from tactile_force.edge import OnnxForceModel, load_bundle
-    from tactile_force.edge.scene import default_bundle_path
-
-    cv2.setNumThreads(1)  # as a scene with threads = 1 runs
-    pool = contact_frames()
-    path = default_bundle_path()
-    bare = BareOnnxRuntime(LatencyCase(None, "fp32", bundle=path), pool)
-    model = OnnxForceModel(load_bundle(path), threads=1)
+    pool, bare, model = setup()
     out = []
     for k in range(rounds):
         order = WORKERS if k % 2 == 0 else WORKERS[::-1]
