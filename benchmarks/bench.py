@@ -61,12 +61,15 @@ class Cadence:
     (frame arrival -> reading, over the frames read), ``cpu_share`` the process CPU time over
     the wall time meanwhile (0.05 = 5 % of one core; None: not measured), ``missed`` frames the
     runtime was late for (skipped, as a camera's newest-frame grabber skips them; no reading
-    measured for them)."""
+    measured for them), ``bare_ms`` the bundle's graph alone in a bare onnxruntime session,
+    one call per 1/fps tick (:func:`benchmarks.harness.latency.bare_at_cadence`): the floor no
+    runtime around this network can beat at this cadence on this host (None: not measured)."""
 
     fps: float = field(metadata=check(gt=0))
     total_ms: Timing
     cpu_share: float | None
     missed: int = 0
+    bare_ms: Timing | None = None
 
 
 @dataclass
@@ -269,8 +272,8 @@ def bench_bundle(path: Path, pool, frames: int = 1000, threads: int = 1, budget_
     from tactile_force.edge.bundle.store import load_bundle
 
     from .harness.budget import JUDGED, judge
-    from .harness.latency import LatencyCase, ModelConfig, measure
-    from .harness.stats import too_few_for_p99
+    from .harness.latency import BareOnnxRuntime, LatencyCase, ModelConfig, bare_at_cadence, measure
+    from .harness.stats import percentiles, too_few_for_p99
 
     bundle = load_bundle(path)
     m = bundle.manifest
@@ -281,18 +284,22 @@ def bench_bundle(path: Path, pool, frames: int = 1000, threads: int = 1, budget_
     depth = _depth_factory(m)
 
     paced = None if fps is None else replace(case, frames=cadence_frames)
+    bare = None if fps is None else BareOnnxRuntime(case, pool)
 
     def once():
         # warnings about the bench's own frames
         with _quiet("tactile_force.edge.runtime", "tactile_force.edge.gate.contact_gate"):
             r = measure(case, pool, bare=False, depth=depth)
             c = None if paced is None else measure(paced, pool, bare=False, depth=depth, fps=fps)
-        return (r, c), (c or r).stages[JUDGED].p99
+        floor = None if bare is None or fps is None else percentiles(bare_at_cadence(bare, cadence_frames, fps))
+        return (r, c, floor), (c or r).stages[JUDGED].p99
 
-    (result, at_fps), verdict, attempts = judge(once, budget_ms, repeats, pause_s, window, sleep or time.sleep)
+    (result, at_fps, floor), verdict, attempts = judge(once, budget_ms, repeats, pause_s, window,
+                                                       sleep or time.sleep)
     s = result.stages
     cadence = None if at_fps is None or fps is None else Cadence(
-        float(fps), _timing(at_fps.stages[JUDGED]), _f(at_fps.cpu_share), at_fps.missed)
+        float(fps), _timing(at_fps.stages[JUDGED]), _f(at_fps.cpu_share), at_fps.missed,
+        None if floor is None else _timing(floor))
     verdict_name, note = verdict.name, result.note
     few = too_few_for_p99(int((at_fps or result).stages[JUDGED].n))
     if few is not None:
@@ -419,7 +426,7 @@ def table_rows(report: BenchReport) -> tuple[list[str], list[list[str]]]:
     head = ["bundle", "variant", "precision", "gate p50", "depth p50", "inference p50", "b2b total p50",
             "b2b total p99"]
     if at is not None:
-        head += [f"{at} total p50", f"{at} total p99", f"{at} CPU"]
+        head += [f"{at} total p50", f"{at} total p99", f"{at} CPU", f"{at} bare graph p99"]
     head += ["RE (here)", "MAE N (here)", "RE (manifest)", "verdict"]
     rows = []
     for b in report.bundles:
@@ -430,7 +437,9 @@ def table_rows(report: BenchReport) -> tuple[list[str], list[list[str]]]:
                _ms(st["inference"].p50 if "inference" in st else None), _ms(b.total_ms.p50), _ms(b.total_ms.p99)]
         if at is not None:
             c = b.cadence
-            row += ["-", "-", "-"] if c is None else [_ms(c.total_ms.p50), _ms(c.total_ms.p99), _share(c.cpu_share)]
+            row += ["-", "-", "-", "-"] if c is None else [
+                _ms(c.total_ms.p50), _ms(c.total_ms.p99), _share(c.cpu_share),
+                _ms(c.bare_ms.p99 if c.bare_ms is not None else None)]
         row += ["-" if e is None or e.re_mean is None else f"{e.re_mean:.3f}",
                 "-" if e is None else f"{e.mae_mean:.3f}", "-" if b.manifest_re is None else f"{b.manifest_re:.3f}",
                 VERDICT_TEXT.get(b.verdict, b.verdict)]
@@ -447,13 +456,25 @@ def _measured_how(report: BenchReport) -> str:
     if at is None:
         return b2b + f"; budget: total p99 <= {report.budget_ms:g} ms"
     return (b2b + f"; {at}: frames arriving at the sensor's cadence, the source sleeping until each is due "
-            f"({'/'.join(str(n) for n in ns)} readings), CPU = process CPU time / wall time meanwhile (of one core); "
+            f"({'/'.join(str(n) for n in ns)} readings), CPU = process CPU time / wall time meanwhile (of one core), "
+            f"bare graph = the bundle's graph alone in a bare onnxruntime session at the same cadence (the floor); "
             f"budget: total p99 at {at} <= {report.budget_ms:g} ms")
 
 
 def _missed_lines(report: BenchReport) -> list[str]:
-    return [f"{b.name}: {b.cadence.missed} frame(s) skipped at {b.cadence.fps:g} fps (the runtime was late for them; "
-            "no reading measured for them)" for b in report.bundles if b.cadence is not None and b.cadence.missed]
+    """What the table alone does not say: frames skipped at the cadence, and bundles whose
+    graph alone misses the budget at the cadence (no runtime around it can meet it here)."""
+    out = [f"{b.name}: {b.cadence.missed} frame(s) skipped at {b.cadence.fps:g} fps (the runtime was late for them; "
+           "no reading measured for them)" for b in report.bundles if b.cadence is not None and b.cadence.missed]
+    for b in report.bundles:
+        c = b.cadence
+        if b.verdict != "PASS" and c is not None and c.bare_ms is not None and c.bare_ms.p99 is not None \
+                and c.bare_ms.p99 > report.budget_ms:
+            out.append(f"{b.name}: its graph alone, in a bare onnxruntime session at {c.fps:g} fps, takes p99 "
+                       f"{c.bare_ms.p99:.3f} ms > the {report.budget_ms:g} ms budget: no runtime around a network of "
+                       "this size holds the budget on this host; try a smaller one (edge/models/fast, "
+                       "tactile-force compress)")
+    return out
 
 
 def text_table(report: BenchReport) -> str:

@@ -26,7 +26,7 @@ from typing import Literal
 import numpy as np
 
 from .harness.frames import contact_frames
-from .harness.latency import BareOnnxRuntime, LatencyCase, auto_trial_frames
+from .harness.latency import BareOnnxRuntime, LatencyCase, auto_trial_frames, bare_at_cadence
 from .harness.machine import CpuWindow, command_line, describe_machine, header
 from .harness.sources import MemorySource, PacedMemorySource
 from .harness.stats import markdown_table
@@ -65,21 +65,6 @@ class Phase:
         if worst:
             return max(float(np.percentile(t, q)) for t in self.totals)
         return float(np.percentile(np.concatenate(self.totals), q))
-
-
-def reference(bare: BareOnnxRuntime, n: int, fps: float = FPS) -> np.ndarray:
-    """``n`` bare session calls, one per 1/fps tick, sleeping between them: ms per call."""
-    out = np.empty(n)
-    period = 1.0 / fps
-    t0 = time.perf_counter() + period
-    for i in range(n):
-        rest = t0 + i * period - time.perf_counter()
-        if rest > 0:
-            time.sleep(rest)
-        a = time.perf_counter_ns()
-        bare.run(i)
-        out[i] = (time.perf_counter_ns() - a) / 1e6
-    return out
 
 
 def runtime_phase(model, pool, sensors: int, n: int, prewarm: Literal["auto", True, False],
@@ -167,7 +152,7 @@ def measure(rounds: int, n: int) -> list[Round]:
         rd.phases["back to back"] = runtime_phase(model, pool, 1, 2000, prewarm=True, fps=None)
         refs = []
         for name, (sensors, prewarm) in PHASES.items():
-            refs.append(reference(bare, n))
+            refs.append(bare_at_cadence(bare, n, FPS))
             rd.phases[name] = runtime_phase(model, pool, sensors, n, prewarm)
         rd.ref = np.concatenate(refs)
         out.append(rd)

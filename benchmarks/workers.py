@@ -20,7 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .cadence import HAND, Phase, reference, runtime_phase, setup
+from .cadence import FPS, HAND, Phase, runtime_phase, setup
+from .harness.latency import bare_at_cadence
 from .harness.machine import CpuWindow, describe_machine, header
 from .harness.stats import markdown_table
 
@@ -34,12 +35,12 @@ def measure(rounds: int, n: int, prewarm: bool) -> list[dict]:
     out = []
     for k in range(rounds):
         order = WORKERS if k % 2 == 0 else WORKERS[::-1]
-        ref = [reference(bare, min(n, 300))]
+        ref = [bare_at_cadence(bare, min(n, 300), FPS)]
         phases: dict[tuple[str, int], Phase] = {}
         for layout, shifted in LAYOUTS.items():
             for w in order:
                 phases[layout, w] = runtime_phase(model, pool, HAND, n, prewarm, workers=w, shifted=shifted)
-        ref.append(reference(bare, min(n, 300)))
+        ref.append(bare_at_cadence(bare, min(n, 300), FPS))
         r50 = float(np.median(np.concatenate(ref)))
         out.append({"reference_p50_ms": r50, "phases": phases})
         print(f"workers round {k + 1}/{rounds}: reference p50 {r50:.3f} ms; worst p99 / reference "

@@ -187,6 +187,23 @@ class BareOnnxRuntime:
         self.sess.run(self.out, {n: x[k:k + 1] for n, x in self.inputs.items()})
 
 
+def bare_at_cadence(bare: BareOnnxRuntime, n: int, fps: float) -> np.ndarray:
+    """``n`` calls of a bare session, one per 1/``fps`` tick, the thread sleeping between them
+    as a runtime does between a sensor's frames: ms per call (the floor no runtime around
+    this graph can beat at this cadence on this host)."""
+    out = np.empty(n)
+    period = 1.0 / fps
+    t0 = time.perf_counter() + period
+    for i in range(n):
+        rest = t0 + i * period - time.perf_counter()
+        if rest > 0:
+            time.sleep(rest)
+        a = time.perf_counter_ns()
+        bare.run(i)
+        out[i] = (time.perf_counter_ns() - a) / 1e6
+    return out
+
+
 def auto_trial_frames(fps: float) -> int:
     """Frames at ``fps`` that the runtime's warm-up trial (``RuntimeOptions.prewarm='auto'``,
     edge/runtime/prewarm_decision.py) lasts, with 0.5 s to spare: a measurement of what a user

@@ -99,15 +99,35 @@ def test_the_cadence_record_round_trips_and_an_older_report_still_reads():
     from tactile_force.edge.typed_json import TypedJsonError
 
     cadence = {"fps": 60.0, "total_ms": {"p50": 0.8, "p90": 0.9, "p99": 1.2, "mean": 0.82, "n": 300},
-               "cpu_share": 0.07, "missed": 2}
+               "cpu_share": 0.07, "missed": 2,
+               "bare_ms": {"p50": 0.5, "p90": 0.6, "p99": 0.7, "mean": 0.52, "n": 300}}
     raw = _report_raw(cadence)
     r = BenchReport.from_json(raw)
-    assert r.bundles[0].cadence == Cadence(60.0, Timing(0.8, 0.9, 1.2, 0.82, 300), 0.07, 2)
+    assert r.bundles[0].cadence == Cadence(60.0, Timing(0.8, 0.9, 1.2, 0.82, 300), 0.07, 2,
+                                           Timing(0.5, 0.6, 0.7, 0.52, 300))
     assert r.bundles[0].judged_ms.p99 == 1.2 and r.to_json() == raw
+    no_floor = {k: v for k, v in cadence.items() if k != "bare_ms"}  # written before the floor was measured
+    assert BenchReport.from_json(_report_raw(no_floor)).bundles[0].cadence.bare_ms is None
     old = BenchReport.from_json(_report_raw(None))  # written before the cadence was measured
     assert old.bundles[0].cadence is None and old.bundles[0].judged_ms.p99 == 0.6
     with pytest.raises(TypedJsonError, match=r"cadence\.fps"):
         BenchReport.from_json(_report_raw({**cadence, "fps": 0}))
+
+
+def test_a_graph_that_alone_misses_the_budget_at_the_cadence_is_named_as_the_floor():
+    from tactile_force.benchmarks.bench import markdown, text_table
+
+    slow = {"p50": 0.9, "p90": 1.1, "p99": 1.3, "mean": 0.95, "n": 300}
+    cadence = {"fps": 60.0, "total_ms": {"p50": 1.4, "p90": 1.6, "p99": 1.9, "mean": 1.45, "n": 300},
+               "cpu_share": 0.1, "missed": 0, "bare_ms": slow}
+    raw = _report_raw(cadence)
+    raw["bundles"][0]["verdict"] = raw["verdict"] = "OVER_BUDGET"
+    over = BenchReport.from_json(raw)
+    for text in (text_table(over), markdown(over)):
+        assert "its graph alone" in text and "1.300 ms > the 1 ms budget" in text and "edge/models/fast" in text
+    fast_floor = dict(cadence, bare_ms={**slow, "p99": 0.6})  # the graph fits: the runtime around it does not
+    raw["bundles"][0]["cadence"] = fast_floor
+    assert "its graph alone" not in text_table(BenchReport.from_json(raw))
 
 
 @pytest.mark.parametrize("value, expected", [("0", "expected a number in [0.01, 10000]"),
@@ -147,6 +167,7 @@ def test_bench_measures_at_the_cadence_with_the_paced_source_and_judges_that(mon
     assert c.total_ms.n <= 120 <= c.total_ms.n + c.missed and r.total_ms.n == 5
     assert len(r.attempts) == 1 and r.attempts[0].total_p99_ms == c.total_ms.p99 == r.judged_ms.p99
     assert r.verdict == "PASS"  # 1 s budget: passes on the cadence's >= 100 readings, never on 5
+    assert c.bare_ms is not None and c.bare_ms.n == 120 and 0 < c.bare_ms.p50 <= c.bare_ms.p99  # the floor
     # and the other way round: plenty back to back, too few at the cadence
     few = bench_bundle(default_bundle_path(), pool, frames=120, warmup=5, repeats=1, budget_ms=1000.0,
                        window=_Window([False]), fps=200.0, cadence_frames=5)
