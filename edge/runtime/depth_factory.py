@@ -1,7 +1,8 @@
 """The depth stage a depth bundle (D, Dmod, RGBmod+D) needs, built from the scene's
 ``[depth]`` table and the bundle's manifest (:func:`depth_options_for` merges them in this
-one place), and the plan of the stages a runtime will run (:func:`plan_stages`). The depth
-code is imported only when a depth stage is built."""
+one place), the plan of the stages a runtime will run (:func:`plan_stages`) and the stage's
+call on one gated frame (:func:`depth_of`). The depth code is imported only when a depth
+stage is built."""
 
 from __future__ import annotations
 
@@ -14,7 +15,10 @@ from ..bundle.manifest import Manifest
 from ..errors import SceneError
 
 if TYPE_CHECKING:  # the depth code is imported only for depth bundles
-    from ..depth import DepthOptions, DepthStage
+    import numpy as np
+
+    from ..depth import DepthOptions, DepthResult, DepthStage
+    from ..gate.contact_gate import GateResult
 
 #: Files shipped with the package (``package:FILE`` in scenes and manifests).
 ASSETS_DIR = Path(__file__).resolve().parents[1] / "assets"
@@ -107,3 +111,12 @@ def plan_stages(sensors: Iterable[str], needs_depth: bool, backend: str = "cpu")
     for name in sensors:
         out += [f"source:{name}", f"gate:{name}"] + ([f"depth:{name}"] if needs_depth else [])
     return out + [f"inference:{backend}"]
+
+
+def depth_of(depth: DepthStage, frame: np.ndarray, g: GateResult) -> DepthResult:
+    """The depth stage on one gated frame: a stage at the network resolution reads the gate's
+    reduced image and mask (the frame's one downscale; its exposure was judged in the gate
+    step), otherwise the frame and the full-resolution mask."""
+    if g.reduced is not None and g.reduced.shape == depth.grid_frame_shape:
+        return depth.process(g.reduced, g.reduced_mask, checked=True)
+    return depth.process(frame, g.mask)

@@ -22,9 +22,10 @@ the depth stage (depth bundles only) and one ``predict`` call for all sensors in
   is dropped; the other sensors keep being served.
 
 The loop only orders the steps; each is one call per frame into the module that does it:
-read (``grabbers``), gate (``gating``), sensor watch (``sensor_watch``), depth (the sensor's
-depth stage), one batched predict (the model), judge (``judging``, which applies the error
-bar of ``bounds``). ``options`` holds what a runtime is built from (options, sensors, the
+read (``prewarm.WarmUps``: in the loop's thread or from ``grabbers``, after a warm-up where
+one pays), gate (``gating``), sensor watch (``sensor_watch``), depth (the sensor's depth
+stage), one batched predict (the model), judge (``judging``, which applies the error bar of
+``bounds``), count (``RuntimeStats.count``). ``options`` holds what a runtime is built from (options, sensors, the
 :class:`~.options.ForceModel` protocol), ``sharing`` who closes a shared model,
 ``depth_factory`` the depth stage of depth bundles.
 
@@ -48,7 +49,6 @@ Timing uses an injectable ``clock`` (ns) so tests drive it deterministically.
 
 from __future__ import annotations
 
-import logging
 import math
 import time
 import weakref
@@ -64,11 +64,9 @@ from ..errors import ModelClosedError, OptionsError, SourceError
 from ..frames import FRAME_SHAPE, TimedFrame
 from ..gate.contact_gate import GateResult
 from ..reading import Flags, ForceReading, StageLatency
-from .depth_factory import build_depth_stage, plan_stages
+from .depth_factory import build_depth_stage, depth_of, plan_stages
 from .gating import GateStep
-from .grabbers import Grabbers as _Grabbers
 from .grabbers import Read as _Read
-from .grabbers import read_once as _read
 from .judging import Judge
 from .options import (
     ForceModel,
@@ -82,8 +80,7 @@ from .options import (
     shares_reduction,
 )
 from .ownership import check_owned
-from .prewarm import Prewarm
-from .prewarm_decision import PrewarmDecision
+from .prewarm import WarmUps
 from .sensor_watch import SensorWatch, WatchReference
 from .sharing import attach, detach
 from .workers import Workers as _Workers
@@ -94,11 +91,6 @@ if TYPE_CHECKING:  # the depth code is imported only for depth bundles
 
 __all__ = ["ForceRuntime"]
 
-_log = logging.getLogger(__name__)
-
-_NO_CONTACT = int(Flags.NO_CONTACT)
-_STALE, _LATE, _INVALID = int(Flags.STALE), int(Flags.LATE), int(Flags.INVALID_INPUT)
-_MISMATCH, _OOD = int(Flags.BACKGROUND_MISMATCH), int(Flags.OUT_OF_DISTRIBUTION)
 _NO_FRAME = np.empty((0, 0, 3), np.uint8)
 
 
@@ -201,9 +193,6 @@ class ForceRuntime:
         net_shape = model.rgb_shape
         self._net = (np.empty((len(sensors), *net_shape), np.uint8)
                      if any(shared) and net_shape is not None else None)
-        use = self.options.grabbers
-        self._use_grabbers = len(sensors) > 1 if use is None else bool(use)
-        self._grabbers: _Grabbers | None = None
         #: threads that run a step's per-sensor work when several frames are ready (workers.py)
         self.workers = worker_count(self.options.workers, len(sensors), clock is time.monotonic_ns)
         self._workers = _Workers(self.workers, "-".join(names)[:40]) if self.workers > 1 else None
@@ -218,22 +207,9 @@ class ForceRuntime:
         self._lanes = {s.name: _Lane(s, GateStep(s.name, s.gate), SensorWatch(s, reference), sh)
                        for s, sh in zip(sensors, shared)}
         self._judge = Judge(bundle)  # flags, honest force, error bar of every reading (judging.py)
-        # Getting ready shortly before the next frame is due at a slow cadence (prewarm.py),
-        # where it pays on this host (prewarm_decision.py): only with the real clock, which the
-        # rest is taken on, and grabber threads, whose frame ends the rest (one sensor has a
-        # grabber thread only while warm-ups run).
-        mode = self.options.prewarm if self.options.prewarm == "auto" else bool(self.options.prewarm)
-        blocked = ("the runtime's clock is injected; the rest is taken on time.monotonic_ns"
-                   if clock is not time.monotonic_ns else
-                   "RuntimeOptions.grabbers=False: nothing could end the rest when a frame arrives"
-                   if use is not None and not use else "")
-        self._decision = PrewarmDecision(False if blocked else mode, clock)
-        if blocked and mode is not False:
-            self._decision.state = f"off ({blocked})"
-        self._prewarm = Prewarm(clock) if mode is not False and not blocked else None
-        self._lone = use is None and len(sensors) == 1  # a grabber thread only while warm-ups run
-        self.stats.prewarm = self._decision.state
-        self._model_prewarm: Callable[[int], None] | None = getattr(model, "prewarm", None)
+        # The step's reads, and getting ready shortly before the next frame is due at a slow
+        # cadence where it pays on this host (prewarm.py, prewarm_decision.py).
+        self._warm = WarmUps(self.sensors, model, self._judge, self._lanes, self.options, clock, self.stats)
         attach(model)  # last: a runtime that failed to build does not count as a user
 
     # -- public ---------------------------------------------------------------------------
@@ -271,29 +247,14 @@ class ForceRuntime:
         live = [s for s in self.sensors if s.alive]
         if not live:
             return out
-        warm = self._prewarm
-        wait_ns = -1
-        if warm is not None:
-            if self._decision.active():  # warm-ups in this step (prewarm_decision.py)
-                wait_ns = warm.wait_ns(s.name for s in live)
-            elif self._lone and self._grabbers is not None:  # back to the loop's thread
-                self._retire_grabber(self._grabbers)
-            self.stats.prewarm = self._decision.state
-        if self._use_grabbers or wait_ns >= 0:  # a rest is taken on the grabbers: a frame ends it
-            grabbers = self._start()
-            reads = grabbers.take(live, wait_ns / 1e9) if wait_ns >= 0 else grabbers.take(live)
-            if not reads and warm is not None:  # rested until shortly before the next frame
-                self._warm_up(warm, live, grabbers)
-                reads = grabbers.take(live)
-        else:
-            reads = [(s, _read(s.source, self.clock)) for s in live]
-        self._acquire(reads, out, pending)
+        reads = self._warm.read(live)  # read (after a warm-up where one pays: prewarm.py)
+        self._acquire(reads, out, pending)  # gate, sensor watch, depth
         if pending:
-            self._infer(pending, out)
+            self._infer(pending, out)  # one batched predict, judge
+        count = self.stats.count
         for r in out:
-            self._count(r)
-        if self._decision.recording:
-            self._decision.add(out)
+            count(r)
+        self._warm.record(out)  # the 'auto' trial's window (prewarm_decision.py)
         return out
 
     def check_backgrounds(self) -> dict[str, str]:
@@ -309,27 +270,9 @@ class ForceRuntime:
         seconds until every live sensor has a frame read, so the first step serves them all
         in one batch. True when they have (always True without grabber threads)."""
         self._check_open()
-        if not self._use_grabbers:
+        if not self._warm.use_grabbers:
             return True
-        return self._start().wait_all([s for s in self.sensors if s.alive], wait_s)
-
-    def _retire_grabber(self, g: _Grabbers) -> None:
-        """One sensor without warm-ups is read in the loop's thread again (the lowest-latency
-        path), once the grabber has handed over the read it was making."""
-        g.retire()
-        if g.retired():
-            g.stop()
-            self._grabbers, self._use_grabbers = None, False
-
-    def _start(self) -> _Grabbers:
-        g = self._grabbers
-        if g is not None and g.retiring and g.retired():  # warm-ups again after a retired grabber
-            g.stop()
-            self._grabbers = None
-        if self._grabbers is None:
-            self._grabbers = _Grabbers(self.sensors, self.clock)
-            self._use_grabbers = True
-        return self._grabbers
+        return self._warm.start().wait_all([s for s in self.sensors if s.alive], wait_s)
 
     def run(self, sinks: Iterable[ReadingSink] = (), max_frames: int | None = None,
             on_reading: Callable[[ForceReading], None] | None = None) -> RuntimeStats:
@@ -368,16 +311,17 @@ class ForceRuntime:
         self._closed = True
         failed: list[tuple[str, BaseException]] = []
         try:
-            if self._grabbers is not None:
-                self._grabbers.stop(timeout_s=0.0)
+            grabbers = self._warm.grabbers
+            if grabbers is not None:
+                grabbers.stop(timeout_s=0.0)
             for s in self.sensors:
                 try:
                     s.source.close()
                 except Exception as exc:  # noqa: BLE001 - the other sources and the model are still released
                     failed.append((s.name, exc))
-            if self._grabbers is not None:
-                self._grabbers.stop()
-                self._grabbers = None
+            if grabbers is not None:
+                grabbers.stop()
+                self._warm.grabbers = None
             if self._workers is not None:
                 self._workers.stop()
         finally:
@@ -387,46 +331,6 @@ class ForceRuntime:
             raise SourceError("ForceRuntime.close(): the source of " + "; of ".join(
                 f"sensor {name!r} failed to close ({type(exc).__name__}: {exc})" for name, exc in failed)
                 + "; every other source and the model were released") from failed[0][1]
-
-    def _warm_up(self, warm: Prewarm, live: list[Sensor], grabbers: _Grabbers) -> None:
-        """The warm-up before the next frame (prewarm.py), timed and counted; given up as soon
-        as a frame is there."""
-        warm.timed(lambda: self._warm_parts(live, lambda: grabbers.ready(live)))
-        self._decision.warmed()
-        st = self.stats
-        st.prewarms, st.prewarm_abandoned = warm.count, warm.abandoned
-
-    def _warm_parts(self, live: list[Sensor], arrived: Callable[[], bool]) -> float:
-        """Each live sensor's gate step once more on its last frame and, when that frame went
-        to the model, its judge and depth stage (depth bundles), then one model call on the
-        last input; results thrown away, no state changed. Given up before any of these parts
-        once ``arrived()`` says a frame is there; returns the share of the parts it ran. A
-        warm-up that fails turns warm-ups off (one warning): it is never worth a reading."""
-        parts = len(live) + 1
-        try:
-            n = 0
-            for k, s in enumerate(live):
-                if arrived():
-                    return k / parts
-                lane = self._lanes[s.name]
-                lane.gating.prewarm()
-                if lane.last is not None:
-                    n += 1
-                    tf, raw, g = lane.last
-                    self._judge.estimate(s.name, tf, raw, g, StageLatency())  # pure: the reading is dropped
-                    if s.depth is not None:  # into the stage's buffers
-                        _depth_of(s.depth, lane.gating.frame, g)
-            if n and self._model_prewarm is not None:
-                if arrived():
-                    return len(live) / parts
-                self._model_prewarm(n)
-        except Exception as exc:  # noqa: BLE001 - the frame that follows must still be served
-            self._prewarm = None
-            self._decision = PrewarmDecision(False, self.clock)
-            self.stats.prewarm = self._decision.state = f"off (a warm-up failed: {type(exc).__name__}: {exc})"
-            _log.warning("ForceRuntime(%s): a warm-up before a frame failed (%s: %s); warm-ups are off for this "
-                         "runtime", ", ".join(s.name for s in self.sensors), type(exc).__name__, exc)
-        return 1.0
 
     # -- the steps of one frame -------------------------------------------------------------
     def _finish(self, r: ForceReading, start_ns: int) -> ForceReading:
@@ -481,9 +385,7 @@ class ForceRuntime:
                               f"TimedFrame.arrival_ns={start}, after read() returned it at {t1} on the runtime's "
                               "clock; expected arrival stamps of the runtime's clock (time.monotonic_ns() unless "
                               "ForceRuntime was given another clock; not time.time_ns())")
-        if self._prewarm is not None:
-            self._prewarm.seen(s.name, start)
-            self.stats.prewarm_overran = self._prewarm.overran
+        self._warm.seen(s.name, start)
         lane = self._lanes[s.name]
         lane.last = None
         return _Pending(lane, tf, start, StageLatency(source_ms=(t1 - r.t0) / 1e6), t1, _NO_FRAME)  # ns -> ms
@@ -492,7 +394,7 @@ class ForceRuntime:
         """The frame's own sensor's work: gate, sensor watch and, in contact, the depth stage
         (depth bundles); touches that sensor's parts only (a worker thread may run it)."""
         lane = p.lane
-        t1 = self.clock() if self._grabbers is not None else p.t1  # the grabber's read was earlier
+        t1 = self.clock() if self._warm.grabbers is not None else p.t1  # the grabber's read was earlier
         gating = lane.gating
         g = p.gate = gating.run(p.tf)  # gate
         if g is None:  # the frame contract or its exposure refused it
@@ -506,7 +408,7 @@ class ForceRuntime:
             return
         depth = lane.sensor.depth
         if depth is not None:  # depth
-            p.res = _depth_of(depth, frame, g)
+            p.res = depth_of(depth, frame, g)
             lat.depth_ms = (self.clock() - t2) / 1e6
 
     def _settle(self, p: _Pending, out: list[ForceReading]) -> bool:
@@ -573,42 +475,13 @@ class ForceRuntime:
         inf_ms = (self.clock() - t0) / 1e6
         self.stats.inferred += n
         judge = self._judge
+        keep = self._warm.prewarm is not None  # the last input, for the next warm-up
         for p, raw in zip(pending, forces):
             g = p.gate
             assert g is not None  # a frame in contact
-            if self._prewarm is not None:
+            if keep:
                 p.lane.last = (p.tf, float(raw), g)
             lat = p.lat
             lat.inference_ms = inf_ms
             r = judge.estimate(p.lane.sensor.name, p.tf, float(raw), g, lat, error, p.lane.watch.foreign)
             out.append(self._finish(r, p.start_ns))
-
-    def _count(self, r: ForceReading) -> None:
-        st = self.stats
-        st.readings += 1
-        f = int(r.flags)  # plain int tests: IntFlag's `in` costs about a microsecond each
-        if f & _STALE:
-            st.stale += 1
-            return
-        st.processed += 1
-        if not f:
-            return
-        if f & _NO_CONTACT:
-            st.no_contact += 1
-        if f & _LATE:
-            st.late += 1
-        if f & _INVALID:
-            st.invalid += 1
-        if f & _MISMATCH:
-            st.background_mismatch += 1
-        if f & _OOD:
-            st.out_of_distribution += 1
-
-
-def _depth_of(depth: DepthStage, frame: np.ndarray, g: GateResult) -> DepthResult:
-    """The depth stage on one gated frame: a stage at the network resolution reads the gate's
-    reduced image and mask (the frame's one downscale; its exposure was judged in the gate
-    step), otherwise the frame and the full-resolution mask."""
-    if g.reduced is not None and g.reduced.shape == depth.grid_frame_shape:
-        return depth.process(g.reduced, g.reduced_mask, checked=True)
-    return depth.process(frame, g.mask)

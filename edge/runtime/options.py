@@ -19,7 +19,7 @@ from ..errors import ArgumentTypeError, OptionsError
 from ..frames import MAX_BATCH, FrameReader, FrameSource
 from ..gate.contact_gate import ContactGate
 from ..limits import DEADLINE_MS, THREADS, WINDOW, as_metadata
-from ..reading import ForceReading, StageLatency
+from ..reading import Flags, ForceReading, StageLatency
 from ..typed_json import check
 
 if TYPE_CHECKING:  # the depth code is imported only for depth bundles
@@ -219,6 +219,11 @@ def check_source(source: object, name: str) -> None:
                    "ReplayFolderSource(folder); a source of your own can subclass FrameSource)")
 
 
+_NO_CONTACT = int(Flags.NO_CONTACT)
+_STALE, _LATE, _INVALID = int(Flags.STALE), int(Flags.LATE), int(Flags.INVALID_INPUT)
+_MISMATCH, _OOD = int(Flags.BACKGROUND_MISMATCH), int(Flags.OUT_OF_DISTRIBUTION)
+
+
 @dataclass
 class RuntimeStats:
     """Counters over a run; latency_ms[stage] = {'p50': ms, 'p99': ms}. ``prewarms``: warm-ups
@@ -246,6 +251,27 @@ class RuntimeStats:
 
     def as_dict(self) -> dict:
         return asdict(self)
+
+    def count(self, r: ForceReading) -> None:
+        """Count one reading by its flags."""
+        self.readings += 1
+        f = int(r.flags)  # plain int tests: IntFlag's `in` costs about a microsecond each
+        if f & _STALE:
+            self.stale += 1
+            return
+        self.processed += 1
+        if not f:
+            return
+        if f & _NO_CONTACT:
+            self.no_contact += 1
+        if f & _LATE:
+            self.late += 1
+        if f & _INVALID:
+            self.invalid += 1
+        if f & _MISMATCH:
+            self.background_mismatch += 1
+        if f & _OOD:
+            self.out_of_distribution += 1
 
 
 class LatencyWindow:

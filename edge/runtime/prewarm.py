@@ -30,11 +30,34 @@ closer than :data:`MIN_GAP_NS` (many sensors phase-shifted keep the core busy) a
 prepared for. Whether it pays at all on this host the runtime measures
 (:mod:`.prewarm_decision`, ``RuntimeOptions.prewarm='auto'``); its CPU cost is one extra gate
 pass and model call per frame.
+
+:class:`WarmUps` is what the runtime (``ForceRuntime``) calls: it takes each step's reads
+(in the loop's thread, or from the grabber threads a rest is taken on), plans the rest before
+a due frame with :class:`Prewarm`, runs or abandons the warm-up, hands one sensor's reads
+back to the loop's thread while warm-ups do not run, and feeds the 'auto' trial of
+:class:`~.prewarm_decision.PrewarmDecision`.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable
+import logging
+import time
+from collections.abc import Callable, Iterable, Mapping
+from typing import TYPE_CHECKING, Protocol
+
+from ..reading import ForceReading, StageLatency
+from .depth_factory import depth_of
+from .grabbers import Grabbers, Read, read_once
+from .prewarm_decision import PrewarmDecision
+
+if TYPE_CHECKING:
+    from ..frames import TimedFrame
+    from ..gate.contact_gate import GateResult
+    from .gating import GateStep
+    from .judging import Judge
+    from .options import ForceModel, RuntimeOptions, RuntimeStats, Sensor
+
+_log = logging.getLogger(__name__.rpartition(".")[0] + ".loop")  # the runtime's warnings, on its one logger
 
 #: Frames closer than this keep the core warm by themselves: no warm-up (ns).
 MIN_PERIOD_NS = 4_000_000
@@ -180,3 +203,155 @@ class Prewarm:
             self.abandoned += 1
         self._wi = (self._wi + 1) % WARM_HISTORY
         return done
+
+
+class WarmLane(Protocol):
+    """What a warm-up reads of one sensor's lane in the runtime: its gate step and, when its
+    last frame went to the model, that frame, its raw force and its gate result (else None)."""
+
+    gating: GateStep
+    last: tuple[TimedFrame, float, GateResult] | None
+
+
+class WarmUps:
+    """The runtime's reads and the warm-ups in the rests before them (see the module docstring).
+
+    Parameters
+    ----------
+    sensors : list of Sensor
+        The runtime's sensors (their names in a warning).
+    model : ForceModel
+        The runtime's model (its ``prewarm``, when it has one, is the warm-up's model call).
+    judge : Judge
+        The runtime's judge (a warm-up runs its estimate once more; the reading is dropped).
+    lanes : mapping
+        Sensor name -> its lane (:class:`WarmLane`).
+    options : RuntimeOptions
+        ``grabbers`` and ``prewarm``.
+    clock : callable
+        Monotonic ns, the runtime's clock (warm-ups run only on ``time.monotonic_ns``).
+    stats : RuntimeStats
+        The runtime's stats (``prewarm``, ``prewarms``, ``prewarm_abandoned``,
+        ``prewarm_overran`` are kept here).
+    """
+
+    def __init__(self, sensors: list[Sensor], model: ForceModel, judge: Judge, lanes: Mapping[str, WarmLane],
+                 options: RuntimeOptions, clock: Callable[[], int], stats: RuntimeStats) -> None:
+        self.sensors, self.clock, self.stats = sensors, clock, stats
+        self._judge, self._lanes = judge, lanes
+        use = options.grabbers
+        #: whether reads are taken from grabber threads (two or more sensors, unless told)
+        self.use_grabbers = len(sensors) > 1 if use is None else bool(use)
+        #: the grabber threads while they run
+        self.grabbers: Grabbers | None = None
+        # Getting ready shortly before the next frame is due at a slow cadence, where it pays
+        # on this host (prewarm_decision.py): only with the real clock, which the rest is
+        # taken on, and grabber threads, whose frame ends the rest (one sensor has a grabber
+        # thread only while warm-ups run).
+        mode = options.prewarm if options.prewarm == "auto" else bool(options.prewarm)
+        blocked = ("the runtime's clock is injected; the rest is taken on time.monotonic_ns"
+                   if clock is not time.monotonic_ns else
+                   "RuntimeOptions.grabbers=False: nothing could end the rest when a frame arrives"
+                   if use is not None and not use else "")
+        #: whether warm-ups run now ('auto': tried on the host)
+        self.decision = PrewarmDecision(False if blocked else mode, clock)
+        if blocked and mode is not False:
+            self.decision.state = f"off ({blocked})"
+        #: when to warm up (None: warm-ups are off for this runtime)
+        self.prewarm = Prewarm(clock) if mode is not False and not blocked else None
+        self._lone = use is None and len(sensors) == 1  # a grabber thread only while warm-ups run
+        stats.prewarm = self.decision.state
+        self._model_prewarm: Callable[[int], None] | None = getattr(model, "prewarm", None)
+
+    def read(self, live: list[Sensor]) -> list[tuple[Sensor, Read]]:
+        """The step's reads of the ``live`` sensors: each read in the loop's thread, or those
+        the grabber threads have; when warm-ups run in this step, after a rest until shortly
+        before the next frame is due and the warm-up (given up when a frame arrives)."""
+        warm = self.prewarm
+        wait_ns = -1
+        if warm is not None:
+            if self.decision.active():  # warm-ups in this step (prewarm_decision.py)
+                wait_ns = warm.wait_ns(s.name for s in live)
+            elif self._lone and self.grabbers is not None:  # back to the loop's thread
+                self._retire_grabber(self.grabbers)
+            self.stats.prewarm = self.decision.state
+        if self.use_grabbers or wait_ns >= 0:  # a rest is taken on the grabbers: a frame ends it
+            grabbers = self.start()
+            reads = grabbers.take(live, wait_ns / 1e9) if wait_ns >= 0 else grabbers.take(live)
+            if not reads and warm is not None:  # rested until shortly before the next frame
+                self._warm_up(warm, live, grabbers)
+                reads = grabbers.take(live)
+        else:
+            reads = [(s, read_once(s.source, self.clock)) for s in live]
+        return reads
+
+    def seen(self, name: str, arrival_ns: int) -> None:
+        """A frame of sensor ``name`` arrived at ``arrival_ns`` (ns; warm-ups on only)."""
+        warm = self.prewarm
+        if warm is not None:
+            warm.seen(name, arrival_ns)
+            self.stats.prewarm_overran = warm.overran
+
+    def record(self, readings: list[ForceReading]) -> None:
+        """The step's readings, for the 'auto' trial's window under way."""
+        if self.decision.recording:
+            self.decision.add(readings)
+
+    def start(self) -> Grabbers:
+        """The grabber threads, started now unless they run."""
+        g = self.grabbers
+        if g is not None and g.retiring and g.retired():  # warm-ups again after a retired grabber
+            g.stop()
+            self.grabbers = None
+        if self.grabbers is None:
+            self.grabbers = Grabbers(self.sensors, self.clock)
+            self.use_grabbers = True
+        return self.grabbers
+
+    def _retire_grabber(self, g: Grabbers) -> None:
+        """One sensor without warm-ups is read in the loop's thread again (the lowest-latency
+        path), once the grabber has handed over the read it was making."""
+        g.retire()
+        if g.retired():
+            g.stop()
+            self.grabbers, self.use_grabbers = None, False
+
+    def _warm_up(self, warm: Prewarm, live: list[Sensor], grabbers: Grabbers) -> None:
+        """The warm-up before the next frame, timed and counted; given up as soon as a frame
+        is there."""
+        warm.timed(lambda: self._warm_parts(live, lambda: grabbers.ready(live)))
+        self.decision.warmed()
+        st = self.stats
+        st.prewarms, st.prewarm_abandoned = warm.count, warm.abandoned
+
+    def _warm_parts(self, live: list[Sensor], arrived: Callable[[], bool]) -> float:
+        """Each live sensor's gate step once more on its last frame and, when that frame went
+        to the model, its judge and depth stage (depth bundles), then one model call on the
+        last input; results thrown away, no state changed. Given up before any of these parts
+        once ``arrived()`` says a frame is there; returns the share of the parts it ran. A
+        warm-up that fails turns warm-ups off (one warning): it is never worth a reading."""
+        parts = len(live) + 1
+        try:
+            n = 0
+            for k, s in enumerate(live):
+                if arrived():
+                    return k / parts
+                lane = self._lanes[s.name]
+                lane.gating.prewarm()
+                if lane.last is not None:
+                    n += 1
+                    tf, raw, g = lane.last
+                    self._judge.estimate(s.name, tf, raw, g, StageLatency())  # pure: the reading is dropped
+                    if s.depth is not None:  # into the stage's buffers
+                        depth_of(s.depth, lane.gating.frame, g)
+            if n and self._model_prewarm is not None:
+                if arrived():
+                    return len(live) / parts
+                self._model_prewarm(n)
+        except Exception as exc:  # noqa: BLE001 - the frame that follows must still be served
+            self.prewarm = None
+            self.decision = PrewarmDecision(False, self.clock)
+            self.stats.prewarm = self.decision.state = f"off (a warm-up failed: {type(exc).__name__}: {exc})"
+            _log.warning("ForceRuntime(%s): a warm-up before a frame failed (%s: %s); warm-ups are off for this "
+                         "runtime", ", ".join(s.name for s in self.sensors), type(exc).__name__, exc)
+        return 1.0

@@ -480,7 +480,7 @@ def test_a_frame_that_arrives_during_a_warm_up_abandons_it(frames, model, monkey
         if step.gate is rt.sensors[0].gate and rt.stats.readings == 8 and not gate_evt.is_set():
             gate_evt.set()  # frame 8 arrives now, during the warm-up
             deadline = time.monotonic() + 5.0
-            while not rt._grabbers.ready(rt.sensors) and time.monotonic() < deadline:
+            while not rt._warm.grabbers.ready(rt.sensors) and time.monotonic() < deadline:
                 time.sleep(0.001)
         real_gate(step)
 
@@ -533,12 +533,12 @@ def test_one_sensor_goes_back_to_the_loops_thread_when_warm_ups_stop(frames, mod
     want, _ = _run(seq, free, model, 1, prewarm=False, paced=False)
     rt = _runtime(free, model, [PacedList(seq, 50)], "auto")
     fake = FakeClock(0)
-    rt._decision = PrewarmDecision("auto", fake, cpu=lambda: 0)
+    rt._warm.decision = PrewarmDecision("auto", fake, cpu=lambda: 0)
     got, threads = [], []
     try:
         while not rt.finished:
             got += [(r.sensor, r.frame_index, r.force_n, int(r.flags), r.contact_area_px, r.detail) for r in rt.step()]
-            threads.append(rt._grabbers is not None)
+            threads.append(rt._warm.grabbers is not None)
             fake.t += WINDOW_NS // 2
     finally:
         rt.close()
