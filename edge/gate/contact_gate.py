@@ -45,6 +45,7 @@ from ..bundle.manifest import FrameReduction
 from ..checks import expect
 from ..errors import FrameError
 from ..frames import TimedFrame, check_frame
+from .blobs import BlobFinder
 from .checks import Reference, colour_swapped, dark_share, is_uniform, motion_explained, noise_verdict
 from .frame_work import THUMB_CELL_PX, FrameWork
 from .learning import BackgroundLearner, RelearnPolicy, refresh
@@ -276,42 +277,9 @@ class ContactGate:
         self._changed_px = self._fw.changed(self._bg, self._M)
 
     def _blobs(self) -> tuple[int, bool, float]:
-        """Contact blobs of the changed mask, filled, into ``_mask``: (area in working
-        pixels, gel saturation seen, deformation in grey levels)."""
-        if not self._changed_px:
-            return 0, False, 0.0
-        o = self.options
-        if self._kernel is not None:
-            cv2.morphologyEx(self._mask, cv2.MORPH_OPEN, self._kernel, dst=self._mask)
-        # Keep blobs big enough to be contact, filled (a ball's flat top looks like background).
-        contours, _ = cv2.findContours(self._mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
-        self._mask.fill(0)
-        keep = [c for c in contours if cv2.contourArea(c) >= self._min_blob]
-        if not keep:
-            return 0, False, 0.0
-        if o.convex_hull:
-            keep = [cv2.convexHull(c) for c in keep]
-        cv2.drawContours(self._mask, keep, -1, 255, thickness=cv2.FILLED)
-        area_small = cv2.countNonZero(self._mask)
-        limit = o.saturation_area_frac * self._work_area
-        saturation_seen = self._strong_area_reaches(limit) if area_small >= limit else False  # else it cannot be
-        return area_small, saturation_seen, max(cv2.mean(self._ad, mask=self._mask)[:3])
-
-    def _strong_area_reaches(self, limit: float) -> bool:
-        """True when the pixels with a channel of ``_ad`` above ``saturation_threshold`` cover
-        ``limit`` working pixels or more. The changed channel values are counted first (one
-        threshold + countNonZero): a pixel holds 1 to 3 of them, so that count alone decides
-        unless it lies within [limit, 3 x limit); then the pixels are counted exactly."""
-        ub = self._sat_level
-        if ub >= 0:
-            cv2.threshold(self._ad, ub, 255, cv2.THRESH_BINARY, dst=self._ad_strong)
-            values = cv2.countNonZero(self._ad_strong_flat)
-            if values < limit:
-                return False
-            if values >= 3 * limit:
-                return True
-        cv2.inRange(self._ad, self._zero, self._sat, dst=self._strong)
-        return self._work_area - cv2.countNonZero(self._strong) >= limit
+        """Contact blobs of the changed mask, filled, into ``_mask`` (edge/gate/blobs.py): (area in
+        working pixels, gel saturation seen, deformation in grey levels)."""
+        return self._blob_finder(self._changed_px)
 
     # -- trust ----------------------------------------------------------------------------
     def _residual(self) -> int:
@@ -471,7 +439,6 @@ class ContactGate:
         o = self.options
         h, w = shape[:2]
         s = int(o.downscale)
-        wh, ww = max(1, h // s), max(1, w // s)
         th, tw = max(2, h // THUMB_CELL_PX), max(2, w // THUMB_CELL_PX)
         self._shape = (int(shape[0]), int(shape[1]), int(shape[2]))
         fw = self._fw = self.frame_work(self._shape, s, o.blur, o.threshold)
@@ -492,19 +459,9 @@ class ContactGate:
         self._y = self._thumb_f.reshape(-1, 3)  # a view: the thumbnail's cells x B, G, R
         self._fit_frac = 1.0
         self._zero = np.zeros(3, np.float64)
-        self._sat = np.full(3, float(o.saturation_threshold), np.float64)
-        self._strong = np.empty((wh, ww), np.uint8)
-        self._ad_strong = np.empty((wh, ww, 3), np.uint8)
-        self._ad_strong_flat = self._ad_strong.reshape(wh, ww * 3)  # a view: one value per channel
-        # inRange's upper bound on uint8 is the threshold rounded half to even (saturate_cast):
-        # the same integer makes cv2.threshold (value > ub) agree with it exactly.
-        self._sat_level = min(255, round(float(o.saturation_threshold)))
+        self._blob_finder = BlobFinder(o, self._mask, self._ad)
         self._full_mask = self._mask if s == 1 else np.zeros((h, w), np.uint8)
-        self._work_area = wh * ww
         self._full_area = h * w
-        self._min_blob = o.min_blob_frac * self._work_area
-        self._kernel = (cv2.getStructuringElement(cv2.MORPH_RECT, (o.open_px, o.open_px)) if o.open_px > 1
-                        else None)
 
     def _reduce(self, arr: np.ndarray) -> None:
         """The one downscale into ``_small``."""

@@ -56,7 +56,7 @@ class FrameWork:
         s = int(downscale)
         wh, ww = max(1, h // s), max(1, w // s)
         self.shape = (h, w, int(shape[2]))
-        self.downscale, self.blur = s, int(blur)
+        self.downscale, self.blur, self.threshold = s, int(blur), float(threshold)
         self.exact = s == 1 or (h % s == 0 and w % s == 0)
         self.small = np.empty((wh, ww, 3), np.uint8)
         self.work = np.empty((wh, ww, 3), np.uint8)
