@@ -47,7 +47,7 @@ from ..errors import FrameError
 from ..frames import TimedFrame, check_frame
 from .blobs import BlobFinder
 from .checks import Reference, colour_swapped, dark_share, is_uniform, motion_explained, noise_verdict
-from .frame_work import THUMB_CELL_PX, FrameWork
+from .frame_work import THUMB_CELL_PX, FrameWork, load_kernels
 from .learning import BackgroundLearner, RelearnPolicy, refresh
 from .options import GateOptions
 from .reduce import default_reduction
@@ -70,6 +70,7 @@ class ContactGate:
         expect(options, (GateOptions, type(None)), "ContactGate.options", "a GateOptions or None (the defaults)")
         self.options = options or GateOptions()
         self.options.validate()
+        load_kernels()  # numba's compiled kernels, once per process: not on the first frame
         self._bg: np.ndarray | None = None  # blurred background, float32, working res
         self._bg_thumb: np.ndarray | None = None  # its thumbnail, float32
         self._ref: Reference | None = None

@@ -22,15 +22,28 @@ import numpy as np
 from ..bundle.manifest import Reduction
 from .reduce import FrameReducer, default_reduction
 
-__all__ = ["FrameWork"]
+__all__ = ["FrameWork", "load_kernels"]
 
 #: Thumbnail cell size in full-resolution pixels (a 320x240 frame -> 20x15 cells).
 THUMB_CELL_PX = 16
 
 
+_loaded: list[ModuleType] = []
+
+
 def _kernels() -> ModuleType:
-    """edge/gate/kernels.py, imported (numba loaded) on first use."""
-    return importlib.import_module(".kernels", __package__)
+    """edge/gate/kernels.py, imported (numba loaded) and every kernel loaded on first use."""
+    if not _loaded:
+        k = importlib.import_module(".kernels", __package__)
+        k.warm()
+        _loaded.append(k)
+    return _loaded[0]
+
+
+def load_kernels() -> None:
+    """Load the compiled kernels now (a :class:`~tactile_force.edge.gate.contact_gate.ContactGate`
+    does when it is made, so its first frame does not wait for them)."""
+    _kernels()
 
 
 class FrameWork:

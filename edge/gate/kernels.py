@@ -159,3 +159,22 @@ def blur3(small, c, t, work):  # pragma: no cover - compiled
     (w*c uint16)."""
     for y in range(small.shape[0]):
         _blur_row(small, y, c, t, work[y])
+
+
+def warm() -> None:
+    """Load every kernel (compile it on the first run of an environment, else from numba's cache)
+    for the argument types the gate passes, writable and read-only frames, so that no frame
+    waits for it."""
+    frame = np.zeros((4, 12), np.uint8)
+    small, work = np.zeros((2, 6), np.uint8), np.zeros((2, 6), np.uint8)
+    v, t = np.zeros((1, 12), np.uint16), np.zeros(6, np.uint16)
+    acc, sums = np.zeros(6, np.uint32), np.zeros(3, np.int64)
+    model = np.zeros((3, 4), np.float32)
+    read_only = frame.copy()
+    read_only.setflags(write=False)  # a read-only frame is another compiled form
+    for f in (frame, read_only):
+        reduce_blur(f, 2, 3, small, work, v, t)
+        reduce_blur(f, 2, 3, small, work[:0], v, t)
+        noise_sums(f, 2, 3, small, t, t.copy(), acc, sums)
+    blur3(small, 3, t, work)
+    changed(np.zeros((2, 6), np.float32), model, work, small, np.zeros((2, 2), np.uint8), 10)
