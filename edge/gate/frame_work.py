@@ -89,7 +89,7 @@ class FrameWork:
         blur3 = self.blur == 3 and wh >= 2 and ww >= 2
         self._k = _kernels()
         self._t = np.empty(ww * 3, np.uint16)
-        self._v = np.empty((max(1, s // 2), w * 3), np.uint16) if steps else None
+        self._v = np.empty((s, w * 3), np.uint16) if steps else None
         self._blur3 = blur3
         self._none = np.empty((0, ww * 3), np.uint8)  # "no blur" for the reduction kernel
         # Pixel noise is judged on one pixel per k x k block of the full frame above x2 (a box
@@ -102,6 +102,8 @@ class FrameWork:
         self._acc = np.empty(ww * 3, np.uint32)
         self._sums = np.zeros(3, np.int64)
         self._inv_n = 1.0 / (wh * ww)
+        self._gt = np.empty(ww * 3, np.float64)  # the changed kernel's gain / offset per value of a row
+        self._ot = np.empty(ww * 3, np.float64)
 
     def reduce(self, frame: np.ndarray, blur: bool = False) -> None:
         """The frame's one downscale into ``small``; with ``blur`` also its blur into ``work``
@@ -109,7 +111,7 @@ class FrameWork:
         s = self.downscale
         if self._v is not None:
             h, w = self.shape[:2]
-            self._k.reduce_blur(frame.reshape(h, w * 3), s, 3, self._small2,
+            self._k.reduce_blur(frame.reshape(h, w * 3), s, self._small2,
                                 self._work2 if blur and self._blur3 else self._none, self._v, self._t)
             if blur and not self._blur3:
                 self._blur_cv()
@@ -127,7 +129,7 @@ class FrameWork:
     def blur_small(self) -> None:
         """``work`` = the blur of ``small``."""
         if self._blur3:
-            self._k.blur3(self._small2, 3, self._t, self._work2)
+            self._k.blur3(self._small2, self._t, self._work2)
         else:
             self._blur_cv()
 
@@ -153,7 +155,7 @@ class FrameWork:
             sums = self._sums
             sub = self.sub
             assert sub is not None
-            self._k.noise_sums(frame.reshape(h, w * 3), self.downscale, 3, sub.reshape(sub.shape[0], -1), self._t,
+            self._k.noise_sums(frame.reshape(h, w * 3), self.downscale, sub.reshape(sub.shape[0], -1), self._t,
                                self._b, self._acc, sums)
             inv = self._inv_n  # cv2.mean: the integer sum times 1 / count
             s0, s1, s2 = sums.tolist()
@@ -176,4 +178,5 @@ class FrameWork:
 
         bg: h x w x 3 float32 (the background); model: the 3 x 4 float32 photometric matrix
         (diagonal gain, offset in the last column; what ``cv2.transform`` would apply)."""
-        return int(self._k.changed(bg.reshape(self._ad2.shape), model, self._work2, self._ad2, self.mask, self.ub))
+        return int(self._k.changed(bg.reshape(self._ad2.shape), model, self._work2, self._ad2, self.mask, self.ub,
+                                   self._gt, self._ot))

@@ -54,7 +54,7 @@ def test_reduction_and_blur_equal_opencv(k, h, w, seed, style):
 def test_blur_equals_opencv_gaussian_3x3_with_its_reflect_101_edges(h, w, seed, style):
     img = _image(seed, (h, w, 3), style)
     out = np.empty_like(img)
-    K.blur3(img.reshape(h, w * 3), 3, np.empty(w * 3, np.uint16), out.reshape(h, w * 3))
+    K.blur3(img.reshape(h, w * 3), np.empty(w * 3, np.uint16), out.reshape(h, w * 3))
     assert np.array_equal(out, cv2.GaussianBlur(img, (3, 3), 0))
 
 
