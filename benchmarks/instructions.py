@@ -259,13 +259,14 @@ def measure(readings: int, variants: list[str] | None = None, log=print,
     with tempfile.TemporaryDirectory(prefix="instructions-") as d:
         tmp = Path(d)
         frames = _frames_file(tmp)
-        # One run outside callgrind first, so that no counted run compiles bytecode (a run that
-        # writes the .pyc files counts tens of millions of instructions more than the next).
-        import subprocess
-
-        subprocess.run([sys.executable, "-m", f"{__package__ or 'benchmarks'}.instructions", "--worker",
-                        str(models_dir() / VARIANTS[-1][0]), str(frames), "none", "0"], env=_env(), check=True,
-                       capture_output=True, timeout=600)
+        # One uncounted run first, itself under callgrind: no counted run compiles bytecode (a run
+        # that writes the .pyc files counts tens of millions of instructions more than the next),
+        # and numba's cache then holds the gate's kernels compiled for the CPU valgrind reports
+        # (it is not the host's: without it every counted run compiles them again, billions of
+        # instructions that differ from run to run).
+        callgrind.run([sys.executable, "-m", f"{__package__ or 'benchmarks'}.instructions", "--worker",
+                       str(models_dir() / VARIANTS[-1][0]), str(frames), "none", "0"], tmp / "callgrind.first.out",
+                      _env())
         for name, label in VARIANTS:
             if variants is None or name in variants:
                 out.append(count_variant(models_dir() / name, label, frames, readings, tmp, log, modes))

@@ -45,119 +45,32 @@ from ..bundle.manifest import FrameReduction
 from ..checks import expect
 from ..errors import FrameError
 from ..frames import TimedFrame, check_frame
+from .blobs import BlobFinder
 from .checks import Reference, colour_swapped, dark_share, is_uniform, motion_explained, noise_verdict
+from .frame_work import THUMB_CELL_PX, FrameWork, load_kernels
 from .learning import BackgroundLearner, RelearnPolicy, refresh
 from .options import GateOptions
-from .reduce import FrameReducer, default_reduction
+from .reduce import default_reduction
+from .result import GateResult
+
+__all__ = ["THUMB_CELL_PX", "ContactGate", "GateResult"]
 
 _log = logging.getLogger(__name__)
 
-#: Thumbnail cell size in full-resolution pixels (a 320x240 frame -> 20x15 cells).
-THUMB_CELL_PX = 16
-
 _UINT8 = np.dtype(np.uint8)
-
-
-
-
-class GateResult:
-    """One gate decision.
-
-    contact: gate open (after hysteresis). area_px: masked area in full-resolution pixels;
-    area_frac: the same as a fraction of the frame. saturation_seen: a large strongly changed
-    area. background_ready: False while the background is still being learnt (then contact
-    is False). mismatch: why the frame does not fit the background ("" = it fits; then
-    contact is False). invalid: why the frame cannot be judged at all (colour order, uniform,
-    noise; "" = fine). deformation: mean compensated colour difference inside the mask (grey
-    levels; 0 without contact). thumb: the frame's 20x15x3 uint8 thumbnail (a buffer the
-    gate reuses). gain / offset: the fitted per-channel (B, G, R) photometric change.
-
-    mask (HxW uint8 0/255 at the frame's full resolution), centroid ((x, y) pixels or None)
-    and bbox ((x, y, w, h) pixels or None) are computed on first access from the gate's
-    working mask, so the hot path of an RGBmod scene, which reads neither, skips the
-    upscale and the moments. The mask is a buffer the gate reuses: read or copy it before
-    the next ``update``.
-    """
-
-    __slots__ = ("contact", "area_px", "area_frac", "saturation_seen", "background_ready", "mismatch", "invalid",
-                 "deformation", "thumb", "gain", "offset", "reduced", "_small", "_k", "_exact", "_full", "_mask_ready",
-                 "_geometry")
-
-    def __init__(self, contact: bool, area_px: int, saturation_seen: bool, small: np.ndarray, full: np.ndarray,
-                 k: int, exact: bool, background_ready: bool = True) -> None:
-        self.contact = contact
-        self.area_px = area_px
-        self.area_frac = area_px / float(full.shape[0] * full.shape[1])
-        self.saturation_seen = saturation_seen
-        self.background_ready = background_ready
-        self.mismatch = ""
-        self.invalid = ""
-        self.deformation = 0.0
-        self.thumb: np.ndarray | None = None
-        #: the frame reduced by the gate's :attr:`ContactGate.reduction` (H/k x W/k x 3 uint8, a
-        #: buffer the gate reuses: the image the model reads when its reduction is the same)
-        self.reduced: np.ndarray | None = None
-        self.gain: tuple[float, float, float] = (1.0, 1.0, 1.0)
-        self.offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
-        self._small, self._full, self._k, self._exact = small, full, k, exact
-        self._mask_ready = small is full
-        self._geometry: tuple | None = None
-
-    @property
-    def mask_computed(self) -> bool:
-        """True once the full-resolution mask exists (it is made on first read of ``mask``)."""
-        return self._mask_ready
-
-    @property
-    def reduced_mask(self) -> np.ndarray:
-        """The gate's working mask (H/k x W/k uint8 0/255, a buffer it reuses), the mask of
-        :attr:`reduced`: what a depth stage at the network resolution reads (``mask`` is this
-        one upscaled by nearest neighbour)."""
-        return self._small
-
-    @property
-    def mask(self) -> np.ndarray:
-        if not self._mask_ready:
-            cv2.resize(self._small, (self._full.shape[1], self._full.shape[0]), dst=self._full,
-                       interpolation=cv2.INTER_NEAREST)
-            self._mask_ready = True
-        return self._full
-
-    def _measure(self) -> tuple:
-        if self._geometry is None:
-            if not self.area_px:
-                self._geometry = (None, None)
-            else:
-                # From the small mask when the factor divides the frame (the nearest-neighbour
-                # upscale maps every small pixel to a k x k block: exact), else the full mask.
-                src, k = (self._small, self._k) if self._exact else (self.mask, 1)
-                m = cv2.moments(src, binaryImage=True)
-                off = (k - 1) / 2.0
-                x, y, w, h = cv2.boundingRect(src)
-                self._geometry = ((k * m["m10"] / m["m00"] + off, k * m["m01"] / m["m00"] + off),
-                                  (int(x * k), int(y * k), int(w * k), int(h * k)))
-        return self._geometry
-
-    @property
-    def centroid(self) -> tuple[float, float] | None:
-        return self._measure()[0]
-
-    @property
-    def bbox(self) -> tuple[int, int, int, int] | None:
-        return self._measure()[1]
-
-    def __repr__(self) -> str:
-        return (f"GateResult(contact={self.contact}, area_px={self.area_px}, saturation_seen={self.saturation_seen}, "
-                f"background_ready={self.background_ready}, mismatch={self.mismatch!r}, invalid={self.invalid!r})")
 
 
 class ContactGate:
     """Per-sensor contact gate; one instance per sensor, not thread-safe."""
 
+    #: the per-frame image work (edge/gate/frame_work.py); the tests put an OpenCV-only oracle here
+    frame_work: type[FrameWork] = FrameWork
+
     def __init__(self, options: GateOptions | None = None) -> None:
         expect(options, (GateOptions, type(None)), "ContactGate.options", "a GateOptions or None (the defaults)")
         self.options = options or GateOptions()
         self.options.validate()
+        load_kernels()  # numba's compiled kernels, once per process: not on the first frame
         self._bg: np.ndarray | None = None  # blurred background, float32, working res
         self._bg_thumb: np.ndarray | None = None  # its thumbnail, float32
         self._ref: Reference | None = None
@@ -358,53 +271,16 @@ class ContactGate:
         self._fit(final=self.options.trust)
 
     def _changed(self, work: np.ndarray) -> None:
-        """The changed-pixel mask into ``_mask`` and |frame - model| into ``_ad``. Model of the
-        frame = background x gain + offset per channel (uint8), then the max over B, G, R of
-        |frame - model| > threshold <=> not all channels within [0, t]."""
+        """The changed-pixel mask into ``_mask`` and |frame - model| into ``_ad`` (``work`` is the
+        frame work's own blurred image). Model of the frame = background x gain + offset per
+        channel (uint8); changed: the max over B, G, R of |frame - model| > threshold."""
         assert self._bg is not None
-        cv2.transform(self._bg, self._M, dst=self._model_f)
-        cv2.convertScaleAbs(self._model_f, dst=self._model)
-        cv2.absdiff(work, self._model, dst=self._ad)
-        cv2.inRange(self._ad, self._zero, self._thr, dst=self._mask)
-        cv2.bitwise_not(self._mask, dst=self._mask)
+        self._changed_px = self._fw.changed(self._bg, self._M)
 
     def _blobs(self) -> tuple[int, bool, float]:
-        """Contact blobs of the changed mask, filled, into ``_mask``: (area in working
-        pixels, gel saturation seen, deformation in grey levels)."""
-        if not cv2.countNonZero(self._mask):
-            return 0, False, 0.0
-        o = self.options
-        if self._kernel is not None:
-            cv2.morphologyEx(self._mask, cv2.MORPH_OPEN, self._kernel, dst=self._mask)
-        # Keep blobs big enough to be contact, filled (a ball's flat top looks like background).
-        contours, _ = cv2.findContours(self._mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
-        self._mask.fill(0)
-        keep = [c for c in contours if cv2.contourArea(c) >= self._min_blob]
-        if not keep:
-            return 0, False, 0.0
-        if o.convex_hull:
-            keep = [cv2.convexHull(c) for c in keep]
-        cv2.drawContours(self._mask, keep, -1, 255, thickness=cv2.FILLED)
-        area_small = cv2.countNonZero(self._mask)
-        limit = o.saturation_area_frac * self._work_area
-        saturation_seen = self._strong_area_reaches(limit) if area_small >= limit else False  # else it cannot be
-        return area_small, saturation_seen, max(cv2.mean(self._ad, mask=self._mask)[:3])
-
-    def _strong_area_reaches(self, limit: float) -> bool:
-        """True when the pixels with a channel of ``_ad`` above ``saturation_threshold`` cover
-        ``limit`` working pixels or more. The changed channel values are counted first (one
-        threshold + countNonZero): a pixel holds 1 to 3 of them, so that count alone decides
-        unless it lies within [limit, 3 x limit); then the pixels are counted exactly."""
-        ub = self._sat_level
-        if ub >= 0:
-            cv2.threshold(self._ad, ub, 255, cv2.THRESH_BINARY, dst=self._ad_strong)
-            values = cv2.countNonZero(self._ad_strong_flat)
-            if values < limit:
-                return False
-            if values >= 3 * limit:
-                return True
-        cv2.inRange(self._ad, self._zero, self._sat, dst=self._strong)
-        return self._work_area - cv2.countNonZero(self._strong) >= limit
+        """Contact blobs of the changed mask, filled, into ``_mask`` (edge/gate/blobs.py): (area in
+        working pixels, gel saturation seen, deformation in grey levels)."""
+        return self._blob_finder(self._changed_px)
 
     # -- trust ----------------------------------------------------------------------------
     def _residual(self) -> int:
@@ -524,23 +400,12 @@ class ContactGate:
                      self.options.relearn_frames, reason)
 
     def _noise(self, work: np.ndarray) -> float:
-        """Pixel-noise level of the frame just prepared: mean |subsampled frame - blurred| (grey
-        levels). A box average hides pixel noise (a k x k average divides it by k), so above x2
-        the level is measured on one pixel per k x k block of the full frame (as the gate did
-        before the box average), into buffers allocated once."""
-        if self._sub is None:
-            cv2.absdiff(self._small, work, dst=self._noise_d)
-        else:
-            assert self._last_frame is not None  # set with the frame prepared
-            cv2.resize(self._last_frame, (self._sub.shape[1], self._sub.shape[0]), dst=self._sub,
-                       interpolation=cv2.INTER_NEAREST)
-            b = self.options.blur
-            if b > 1:
-                cv2.GaussianBlur(self._sub, (b, b), 0, dst=self._sub_blur)
-            else:
-                np.copyto(self._sub_blur, self._sub)
-            cv2.absdiff(self._sub, self._sub_blur, dst=self._noise_d)
-        return float(max(cv2.mean(self._noise_d)[:3]))
+        """Pixel-noise level of the frame just prepared (``work`` its blurred reduced image):
+        mean |subsampled frame - blurred| (grey levels). A box average hides pixel noise (a k x k
+        average divides it by k), so above x2 the level is measured on one pixel per k x k block
+        of the full frame (edge/gate/frame_work.py)."""
+        assert self._last_frame is not None  # set with the frame prepared
+        return self._fw.noise(self._last_frame)
 
     def _set_background(self, bg: np.ndarray, thumb: np.ndarray, noise: float) -> None:
         self.background_image, self.background_origin = None, ""  # capture_background sets them again
@@ -575,12 +440,12 @@ class ContactGate:
         o = self.options
         h, w = shape[:2]
         s = int(o.downscale)
-        wh, ww = max(1, h // s), max(1, w // s)
         th, tw = max(2, h // THUMB_CELL_PX), max(2, w // THUMB_CELL_PX)
         self._shape = (int(shape[0]), int(shape[1]), int(shape[2]))
-        self._small = np.empty((wh, ww, 3), np.uint8)
-        self._work = np.empty((wh, ww, 3), np.uint8)
-        self._thumb = np.empty((th, tw, 3), np.uint8)
+        fw = self._fw = self.frame_work(self._shape, s, o.blur, o.threshold)
+        self._small, self._work, self._thumb, self._ad, self._mask = fw.small, fw.work, fw.thumb, fw.ad, fw.mask
+        self._changed_px = 0
+        self._exact = fw.exact
         self._thumb_f = np.empty((th, tw, 3), np.float32)
         self._tmodel = np.empty((th, tw, 3), np.float32)
         self._tres = np.empty((th, tw, 3), np.float32)
@@ -594,58 +459,24 @@ class ContactGate:
         self._sx = np.empty((3, 1), np.float64)
         self._y = self._thumb_f.reshape(-1, 3)  # a view: the thumbnail's cells x B, G, R
         self._fit_frac = 1.0
-        self._model_f = np.empty((wh, ww, 3), np.float32)
-        self._model = np.empty((wh, ww, 3), np.uint8)
-        self._ad = np.empty((wh, ww, 3), np.uint8)
         self._zero = np.zeros(3, np.float64)
-        self._thr = np.full(3, float(o.threshold), np.float64)
-        self._sat = np.full(3, float(o.saturation_threshold), np.float64)
-        self._exact = s == 1 or (h % s == 0 and w % s == 0)
-        self._mask = np.empty((wh, ww), np.uint8)
-        self._strong = np.empty((wh, ww), np.uint8)
-        self._ad_strong = np.empty((wh, ww, 3), np.uint8)
-        self._ad_strong_flat = self._ad_strong.reshape(wh, ww * 3)  # a view: one value per channel
-        # inRange's upper bound on uint8 is the threshold rounded half to even (saturate_cast):
-        # the same integer makes cv2.threshold (value > ub) agree with it exactly.
-        self._sat_level = min(255, round(float(o.saturation_threshold)))
+        self._blob_finder = BlobFinder(o, self._mask, self._ad)
         self._full_mask = self._mask if s == 1 else np.zeros((h, w), np.uint8)
-        self._work_area = wh * ww
         self._full_area = h * w
-        self._min_blob = o.min_blob_frac * self._work_area
-        self._kernel = (cv2.getStructuringElement(cv2.MORPH_RECT, (o.open_px, o.open_px)) if o.open_px > 1
-                        else None)
-        # The one downscale per frame: an exact box average (edge/gate/reduce.py) when the factor
-        # divides the frame (what a compact bundle's network input is), else INTER_AREA.
-        self._reducer = FrameReducer(default_reduction(s), self._shape) if self._exact and s > 1 else None
-        # Pixel noise is judged on one pixel per block (see _noise): buffers for it above x2.
-        self._sub = np.empty((wh, ww, 3), np.uint8) if self._reducer is not None and s > 2 else None
-        self._sub_blur = np.empty((wh, ww, 3), np.uint8)
-        self._noise_d = np.empty((wh, ww, 3), np.uint8)
 
     def _reduce(self, arr: np.ndarray) -> None:
         """The one downscale into ``_small``."""
-        s = int(self.options.downscale)
-        if self._reducer is not None:
-            self._reducer(arr, out=self._small)
-        elif s > 1:
-            cv2.resize(arr, (self._small.shape[1], self._small.shape[0]), dst=self._small,
-                       interpolation=cv2.INTER_LINEAR if s <= 2 else cv2.INTER_NEAREST)
-        else:
-            np.copyto(self._small, arr)
+        self._fw.reduce(arr)
 
     def _prepare(self, arr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The frame's one downscale (an exact box average, edge/gate/reduce.py, into ``_small``;
         a factor that does not divide the frame: INTER_LINEAR at x2, else one pixel per block)
-        + blur into the uint8 working buffer, and its thumbnail; all buffers are reused."""
+        + blur into the uint8 working buffer, and its thumbnail; all buffers are reused
+        (edge/gate/frame_work.py)."""
+        fw = self._fw
         if self._reduced_for is not arr:
-            self._reduce(arr)
-        self._reduced_for = None
-        src = self._small
-        b = self.options.blur
-        if b > 1:
-            cv2.GaussianBlur(src, (b, b), 0, dst=self._work)
+            fw.reduce(arr, blur=True)
         else:
-            np.copyto(self._work, src)
-        cv2.resize(self._work, (self._thumb.shape[1], self._thumb.shape[0]), dst=self._thumb,
-                   interpolation=cv2.INTER_LINEAR)
-        return self._work, self._thumb
+            fw.blur_small()
+        self._reduced_for = None
+        return self._work, fw.thumbnail()

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import json
 import shutil
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,13 +13,16 @@ from tactile_force.edge import BundleError, ContactGate, OnnxForceModel, load_bu
 from tactile_force.edge.bundle.manifest import FORMAT_VERSION, FrameReduction, Reduction, manifest_from_json
 from tactile_force.edge.errors import FrameError
 from tactile_force.edge.frames import FRAME_SHAPE
+from tactile_force.edge.gate.frame_work import FrameWork
 from tactile_force.edge.gate.reduce import FrameReducer, default_reduction, reduce_frames
 from tactile_force.edge.runtime import ForceRuntime, RuntimeOptions, Sensor
 from tactile_force.edge.scene import default_bundle_path
 
-from tests.conftest import ListSource
+from tests.conftest import (
+    REPO,  # noqa: E402
+    ListSource,
+)
 
-from tests.conftest import REPO  # noqa: E402
 REFERENCE = REPO / "benchmarks" / "reference_graphs" / "default_c1733e6.onnx"
 
 
@@ -147,12 +149,18 @@ class _Watch:
 def test_one_downscale_per_frame_shared_by_gate_and_model(monkeypatch, sensors):
     calls = {"n": 0}
     real = FrameReducer.__call__
+    real_work = FrameWork.reduce
 
     def counted(self, frame, out=None):
         calls["n"] += 1
         return real(self, frame, out)
 
+    def counted_work(self, frame, blur=False):  # the gate's reduction (its kernel does not call FrameReducer)
+        calls["n"] += 1
+        return real_work(self, frame, blur)
+
     monkeypatch.setattr(FrameReducer, "__call__", counted)
+    monkeypatch.setattr(FrameWork, "reduce", counted_work)
     model = OnnxForceModel(default_bundle_path())
     watch = _Watch(model)
     frames = _frames(6)

@@ -1,0 +1,182 @@
+"""The contact gate's per-frame image work, into buffers allocated once per frame size.
+
+:class:`FrameWork` does, for :class:`~tactile_force.edge.gate.contact_gate.ContactGate`, what every
+frame needs before the judging: the one downscale (edge/gate/reduce.py's box average), the 3 x 3 blur
+of the reduced image (``work``), its thumbnail, the pixel-noise level and the changed-pixel mask with
+|frame - model|. The common case (a power-of-two factor dividing the frame, blur 3) runs the
+compiled kernels of edge/gate/kernels.py (numba, loaded on the first frame; the first run of a
+Python environment compiles them, later runs load them from numba's cache); they equal the
+OpenCV calls they replace bit for bit (tests/edge/gate/test_kernels.py holds those calls as the
+oracle). A factor that is not a power of two, one that does not divide the frame, another blur or
+a working image under 2 x 2 pixels keeps the OpenCV calls below.
+"""
+
+from __future__ import annotations
+
+import importlib
+from types import ModuleType
+
+import cv2
+import numpy as np
+
+from ..bundle.manifest import Reduction
+from .reduce import FrameReducer, default_reduction
+
+__all__ = ["FrameWork", "load_kernels"]
+
+#: Thumbnail cell size in full-resolution pixels (a 320x240 frame -> 20x15 cells).
+THUMB_CELL_PX = 16
+
+
+_loaded: list[ModuleType] = []
+
+
+def _kernels() -> ModuleType:
+    """edge/gate/kernels.py, imported (numba loaded) and every kernel loaded on first use."""
+    if not _loaded:
+        k = importlib.import_module(".kernels", __package__)
+        k.warm()
+        _loaded.append(k)
+    return _loaded[0]
+
+
+def load_kernels() -> None:
+    """Load the compiled kernels now (a :class:`~tactile_force.edge.gate.contact_gate.ContactGate`
+    does when it is made, so its first frame does not wait for them)."""
+    _kernels()
+
+
+class FrameWork:
+    """Reduce, blur, thumbnail, noise level and changed mask of H x W x 3 uint8 frames.
+
+    Parameters
+    ----------
+    shape
+        (H, W, 3) of the frames.
+    downscale
+        Integer factor k of the working resolution (H/k x W/k; 1 = full resolution).
+    blur
+        Odd Gaussian kernel size at the working resolution (1 = none).
+    threshold
+        Colour difference (grey levels) above which a channel marks a pixel changed.
+
+    Buffers (reused every frame): ``small`` (the reduced image), ``work`` (its blur), ``thumb``,
+    ``ad`` (|work - model|) and ``mask`` (changed 255 / 0), all of the working size but the thumbnail.
+    """
+
+    def __init__(self, shape: tuple[int, int, int], downscale: int, blur: int, threshold: float) -> None:
+        h, w = int(shape[0]), int(shape[1])
+        s = int(downscale)
+        wh, ww = max(1, h // s), max(1, w // s)
+        self.shape = (h, w, int(shape[2]))
+        self.downscale, self.blur, self.threshold = s, int(blur), float(threshold)
+        self.exact = s == 1 or (h % s == 0 and w % s == 0)
+        self.small = np.empty((wh, ww, 3), np.uint8)
+        self.work = np.empty((wh, ww, 3), np.uint8)
+        self.thumb = np.empty((max(2, h // THUMB_CELL_PX), max(2, w // THUMB_CELL_PX), 3), np.uint8)
+        self.ad = np.empty((wh, ww, 3), np.uint8)
+        self.mask = np.empty((wh, ww), np.uint8)
+        # the changed mask's bound: inRange's upper bound on uint8 is the threshold rounded half
+        # to even (saturate_cast), so "changed" is a channel of |work - model| above this integer
+        self.ub = min(255, round(float(threshold)))
+        self._ad2 = self.ad.reshape(wh, ww * 3)
+        self._work2 = self.work.reshape(wh, ww * 3)
+        self._small2 = self.small.reshape(wh, ww * 3)
+        # The one downscale: an exact box average (edge/gate/reduce.py) when the factor divides
+        # the frame, else INTER_LINEAR at x2 / one pixel per block above.
+        self.reducer = FrameReducer(default_reduction(s), self.shape) if self.exact and s > 1 else None
+        steps = self.reducer is not None and self.reducer.reduction.method is Reduction.AREA_2X_STEPS
+        blur3 = self.blur == 3 and wh >= 2 and ww >= 2
+        self._k = _kernels()
+        self._t = np.empty(ww * 3, np.uint16)
+        self._v = np.empty((s, w * 3), np.uint16) if steps else None
+        self._blur3 = blur3
+        self._none = np.empty((0, ww * 3), np.uint8)  # "no blur" for the reduction kernel
+        # Pixel noise is judged on one pixel per k x k block of the full frame above x2 (a box
+        # average hides pixel noise): the subsample and its blur.
+        self.sub = np.empty((wh, ww, 3), np.uint8) if self.reducer is not None and s > 2 else None
+        self._noise_kernel = self.sub is not None and blur3
+        self._sub_blur = np.empty((wh, ww, 3), np.uint8)
+        self._noise_d = np.empty((wh, ww, 3), np.uint8)
+        self._b = np.empty(ww * 3, np.uint16)
+        self._acc = np.empty(ww * 3, np.uint32)
+        self._sums = np.zeros(3, np.int64)
+        self._inv_n = 1.0 / (wh * ww)
+        self._gt = np.empty(ww * 3, np.float64)  # the changed kernel's gain / offset per value of a row
+        self._ot = np.empty(ww * 3, np.float64)
+
+    def reduce(self, frame: np.ndarray, blur: bool = False) -> None:
+        """The frame's one downscale into ``small``; with ``blur`` also its blur into ``work``
+        (one kernel call where the kernels apply)."""
+        s = self.downscale
+        if self._v is not None:
+            h, w = self.shape[:2]
+            self._k.reduce_blur(frame.reshape(h, w * 3), s, self._small2,
+                                self._work2 if blur and self._blur3 else self._none, self._v, self._t)
+            if blur and not self._blur3:
+                self._blur_cv()
+            return
+        if self.reducer is not None:
+            self.reducer(frame, out=self.small)
+        elif s > 1:
+            cv2.resize(frame, (self.small.shape[1], self.small.shape[0]), dst=self.small,
+                       interpolation=cv2.INTER_LINEAR if s <= 2 else cv2.INTER_NEAREST)
+        else:
+            np.copyto(self.small, frame)
+        if blur:
+            self.blur_small()
+
+    def blur_small(self) -> None:
+        """``work`` = the blur of ``small``."""
+        if self._blur3:
+            self._k.blur3(self._small2, self._t, self._work2)
+        else:
+            self._blur_cv()
+
+    def _blur_cv(self) -> None:
+        b = self.blur
+        if b > 1:
+            cv2.GaussianBlur(self.small, (b, b), 0, dst=self.work)
+        else:
+            np.copyto(self.work, self.small)
+
+    def thumbnail(self) -> np.ndarray:
+        """``thumb`` = ``work`` shrunk to the thumbnail (INTER_LINEAR)."""
+        t = self.thumb
+        cv2.resize(self.work, (t.shape[1], t.shape[0]), dst=t, interpolation=cv2.INTER_LINEAR)
+        return t
+
+    def noise(self, frame: np.ndarray) -> float:
+        """Pixel-noise level of ``frame`` (the frame ``work`` was made from): the largest
+        per-channel mean |subsample - its blur| above x2 (see ``sub``), else of |small - work|
+        (grey levels)."""
+        if self._noise_kernel:
+            h, w = self.shape[:2]
+            sums = self._sums
+            sub = self.sub
+            assert sub is not None
+            self._k.noise_sums(frame.reshape(h, w * 3), self.downscale, sub.reshape(sub.shape[0], -1), self._t,
+                               self._b, self._acc, sums)
+            inv = self._inv_n  # cv2.mean: the integer sum times 1 / count
+            s0, s1, s2 = sums.tolist()
+            return max(s0 * inv, s1 * inv, s2 * inv)
+        if self.sub is None:
+            cv2.absdiff(self.small, self.work, dst=self._noise_d)
+        else:
+            cv2.resize(frame, (self.sub.shape[1], self.sub.shape[0]), dst=self.sub, interpolation=cv2.INTER_NEAREST)
+            b = self.blur
+            if b > 1:
+                cv2.GaussianBlur(self.sub, (b, b), 0, dst=self._sub_blur)
+            else:
+                np.copyto(self._sub_blur, self.sub)
+            cv2.absdiff(self.sub, self._sub_blur, dst=self._noise_d)
+        return float(max(cv2.mean(self._noise_d)[:3]))
+
+    def changed(self, bg: np.ndarray, model: np.ndarray) -> int:
+        """|work - u8(gain x bg + offset)| per channel into ``ad`` and the changed mask (255 where a
+        channel of it exceeds the threshold) into ``mask``; returns the changed pixel count.
+
+        bg: h x w x 3 float32 (the background); model: the 3 x 4 float32 photometric matrix
+        (diagonal gain, offset in the last column; what ``cv2.transform`` would apply)."""
+        return int(self._k.changed(bg.reshape(self._ad2.shape), model, self._work2, self._ad2, self.mask, self.ub,
+                                   self._gt, self._ot))

@@ -1,0 +1,80 @@
+"""The OpenCV calls the gate's compiled kernels replace (edge/gate/kernels.py): the oracle they are
+compared against, bit for bit (tests/edge/gate/test_kernels.py). Not a runtime path."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+from tactile_force.edge.gate.contact_gate import ContactGate
+from tactile_force.edge.gate.frame_work import FrameWork
+from tactile_force.edge.gate.reduce import FrameReducer, default_reduction
+
+
+def reduce_cv(frame: np.ndarray, k: int) -> np.ndarray:
+    """``area-2x-steps`` by ``k`` (a power of two): OpenCV INTER_AREA at 1/2, log2(k) times."""
+    return FrameReducer(default_reduction(k), frame.shape).__call__(frame).copy()
+
+
+def blur_cv(img: np.ndarray) -> np.ndarray:
+    """cv2.GaussianBlur(img, (3, 3), 0)."""
+    return cv2.GaussianBlur(img, (3, 3), 0)
+
+
+def noise_cv(frame: np.ndarray, k: int) -> float:
+    """Largest per-channel mean |nearest subsample - its 3 x 3 blur| (cv2.mean)."""
+    h, w = frame.shape[0] // k, frame.shape[1] // k
+    sub = cv2.resize(frame, (w, h), interpolation=cv2.INTER_NEAREST)
+    return float(max(cv2.mean(cv2.absdiff(sub, blur_cv(sub)))[:3]))
+
+
+def changed_cv(work: np.ndarray, bg: np.ndarray, model: np.ndarray, threshold: float) -> tuple[np.ndarray, np.ndarray]:
+    """(|work - convertScaleAbs(transform(bg, model))|, the mask 255 where a channel exceeds threshold)."""
+    m = cv2.convertScaleAbs(cv2.transform(bg, model))
+    ad = cv2.absdiff(work, m)
+    mask = cv2.bitwise_not(cv2.inRange(ad, np.zeros(3), np.full(3, float(threshold))))
+    return ad, mask
+
+
+class OracleFrameWork(FrameWork):
+    """:class:`FrameWork` with every step done by the OpenCV calls (the gate before the kernels)."""
+
+    def reduce(self, frame: np.ndarray, blur: bool = False) -> None:
+        s = self.downscale
+        if self.reducer is not None:
+            self.reducer(frame, out=self.small)
+        elif s > 1:
+            cv2.resize(frame, (self.small.shape[1], self.small.shape[0]), dst=self.small,
+                       interpolation=cv2.INTER_LINEAR if s <= 2 else cv2.INTER_NEAREST)
+        else:
+            np.copyto(self.small, frame)
+        if blur:
+            self.blur_small()
+
+    def blur_small(self) -> None:
+        b = self.blur
+        if b > 1:
+            cv2.GaussianBlur(self.small, (b, b), 0, dst=self.work)
+        else:
+            np.copyto(self.work, self.small)
+
+    def noise(self, frame: np.ndarray) -> float:
+        if self.sub is None:
+            d = cv2.absdiff(self.small, self.work)
+        else:
+            cv2.resize(frame, (self.sub.shape[1], self.sub.shape[0]), dst=self.sub, interpolation=cv2.INTER_NEAREST)
+            b = self.blur
+            sb = cv2.GaussianBlur(self.sub, (b, b), 0) if b > 1 else self.sub.copy()
+            d = cv2.absdiff(self.sub, sb)
+        return float(max(cv2.mean(d)[:3]))
+
+    def changed(self, bg: np.ndarray, model: np.ndarray) -> int:
+        ad, mask = changed_cv(self.work, bg, model, self.threshold)
+        np.copyto(self.ad, ad)
+        np.copyto(self.mask, mask)
+        return cv2.countNonZero(mask)
+
+
+class OracleGate(ContactGate):
+    """A :class:`ContactGate` whose per-frame image work is the OpenCV oracle."""
+
+    frame_work = OracleFrameWork

@@ -1,0 +1,190 @@
+"""The gate's compiled kernels (edge/gate/kernels.py, through edge/gate/frame_work.py) equal the OpenCV
+calls they replace (tests/edge/gate/oracle.py) bit for bit: per kernel on random images of many
+shapes (odd ones included) and on real frames, and the whole gate's results over sequences."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from tactile_force.edge.gate import ContactGate, GateOptions
+from tactile_force.edge.gate import kernels as K
+from tactile_force.edge.gate.frame_work import FrameWork
+
+from tests.conftest import shared_data
+from tests.edge.gate.oracle import OracleGate, blur_cv, changed_cv, noise_cv, reduce_cv
+
+_SETTINGS = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+
+
+def _image(seed: int, shape: tuple[int, ...], style: int) -> np.ndarray:
+    """Random uint8 content: uniform noise, the extremes 0 / 255 only, or a smooth ramp with noise."""
+    rng = np.random.default_rng(seed)
+    if style == 0:
+        return rng.integers(0, 256, shape, dtype=np.uint8)
+    if style == 1:
+        return (rng.integers(0, 2, shape, dtype=np.uint8) * 255).astype(np.uint8)
+    ramp = np.linspace(0, 255, int(np.prod(shape))).reshape(shape)
+    return np.clip(ramp + rng.normal(0, 3, shape), 0, 255).astype(np.uint8)
+
+
+def _work(frame: np.ndarray, k: int, blur: int = 3) -> FrameWork:
+    fw = FrameWork(frame.shape, k, blur, 10.0)  # type: ignore[arg-type]
+    fw.reduce(frame, blur=True)
+    return fw
+
+
+@_SETTINGS
+@given(k=st.sampled_from([2, 4, 8, 16]), h=st.integers(2, 23), w=st.integers(2, 23), seed=st.integers(0, 2**31),
+       style=st.integers(0, 2))
+def test_reduction_and_blur_equal_opencv(k, h, w, seed, style):
+    frame = _image(seed, (k * h, k * w, 3), style)
+    fw = _work(frame, k)
+    ref = reduce_cv(frame, k)
+    assert np.array_equal(fw.small, ref)
+    assert np.array_equal(fw.work, blur_cv(ref))
+    fw.blur_small()  # the blur alone (after the runtime's separate reduce)
+    assert np.array_equal(fw.work, blur_cv(ref))
+
+
+@_SETTINGS
+@given(h=st.integers(2, 41), w=st.integers(2, 41), seed=st.integers(0, 2**31), style=st.integers(0, 2))
+def test_blur_equals_opencv_gaussian_3x3_with_its_reflect_101_edges(h, w, seed, style):
+    img = _image(seed, (h, w, 3), style)
+    out = np.empty_like(img)
+    K.blur3(img.reshape(h, w * 3), np.empty(w * 3, np.uint16), out.reshape(h, w * 3))
+    assert np.array_equal(out, cv2.GaussianBlur(img, (3, 3), 0))
+
+
+@_SETTINGS
+@given(k=st.sampled_from([4, 8, 16]), h=st.integers(2, 21), w=st.integers(2, 21), seed=st.integers(0, 2**31),
+       style=st.integers(0, 2))
+def test_noise_level_equals_opencv(k, h, w, seed, style):
+    frame = _image(seed, (k * h, k * w, 3), style)
+    fw = _work(frame, k)
+    assert fw.noise(frame) == noise_cv(frame, k)  # exactly: cv2.mean's sum x (1 / count)
+    assert np.array_equal(fw.sub, cv2.resize(frame, (w, h), interpolation=cv2.INTER_NEAREST))
+
+
+@_SETTINGS
+@given(h=st.integers(1, 19), w=st.integers(1, 19), seed=st.integers(0, 2**31),
+       threshold=st.sampled_from([10.0, 10.5, 11.5, 0.4, 3.2, 28.0, 254.6, 255.0]), identity=st.booleans())
+def test_changed_mask_and_difference_equal_opencv(h, w, seed, threshold, identity):
+    rng = np.random.default_rng(seed)
+    work = rng.integers(0, 256, (h, w, 3), dtype=np.uint8)
+    bg = (rng.random((h, w, 3)) * 320 - 30).astype(np.float32)  # below 0 and above 255: |x|, saturation
+    model = np.zeros((3, 4), np.float32)
+    if identity:
+        model[[0, 1, 2], [0, 1, 2]] = 1.0
+    else:
+        model[[0, 1, 2], [0, 1, 2]] = (rng.random(3) * 2.5 - 0.5).astype(np.float32)
+        model[:, 3] = (rng.random(3) * 120 - 60).astype(np.float32)
+    fw = FrameWork((h, w, 3), 1, 1, threshold)
+    np.copyto(fw.work, work)
+    n = fw.changed(bg, model)
+    ad, mask = changed_cv(work, bg, model, threshold)
+    assert np.array_equal(fw.ad, ad) and np.array_equal(fw.mask, mask)
+    assert n == cv2.countNonZero(mask)
+
+
+def _real_frames() -> list[np.ndarray]:
+    files = sorted(shared_data("aurova_digit_grasp", "images").glob("*.png"))
+    files += sorted(p for p in shared_data("digit_backgrounds").iterdir() if p.suffix in (".png", ".jpg"))
+    frames = [cv2.imread(str(p), cv2.IMREAD_COLOR) for p in files]
+    assert frames and all(f is not None for f in frames)
+    return [np.ascontiguousarray(f) for f in frames]
+
+
+@pytest.mark.parametrize("k", [2, 4, 8])
+def test_kernels_equal_opencv_on_real_frames(k):
+    for frame in _real_frames():
+        if frame.shape[0] % k or frame.shape[1] % k:
+            continue
+        fw = _work(frame, k)
+        ref = reduce_cv(frame, k)
+        assert np.array_equal(fw.small, ref) and np.array_equal(fw.work, blur_cv(ref))
+        if k > 2:
+            assert fw.noise(frame) == noise_cv(frame, k)
+
+
+# -- the whole gate ---------------------------------------------------------------------------
+
+def _compare(a, b) -> None:
+    for name in ("contact", "area_px", "area_frac", "saturation_seen", "background_ready", "mismatch", "invalid",
+                 "deformation", "gain", "offset", "centroid", "bbox"):
+        assert getattr(a, name) == getattr(b, name), name
+    for name in ("reduced", "reduced_mask", "thumb", "mask"):
+        assert np.array_equal(getattr(a, name), getattr(b, name)), name
+
+
+def _run_both(frames: list[np.ndarray], options: GateOptions, background: np.ndarray | None = None) -> list:
+    gate, oracle = ContactGate(options), OracleGate(options)
+    if background is not None:
+        gate.capture_background([background])
+        oracle.capture_background([background])
+    results = []
+    for f in frames:
+        a, b = gate.update(f), oracle.update(f)
+        _compare(a, b)
+        results.append(a)
+    assert gate.relearned == oracle.relearned
+    return results
+
+
+def _virtual_sequence() -> list[np.ndarray]:
+    from tactile_force.edge.synthetic.digit import ContactSpec, VirtualDigit, VirtualDigitOptions
+
+    digit = VirtualDigit(VirtualDigitOptions(seed=3))
+    rng = np.random.default_rng(5)
+    frames = [digit.render(None, 0.0).frame for _ in range(12)]  # the background is learnt
+    for force in (1.0, 3.0, 6.0, 9.0, 12.0, 6.0, 2.0):
+        frames.append(digit.render(ContactSpec("circle_large", (150.0, 110.0)), force).frame)
+    quiet = digit.render(None, 0.0).frame
+    step = np.clip(quiet.astype(np.float32) * 1.35 + 8, 0, 255).astype(np.uint8)  # LED / exposure step
+    frames += [step] * 4
+    burst = np.clip(quiet + rng.normal(0, 25, quiet.shape), 0, 255).astype(np.uint8)  # pixel-noise burst
+    frames += [burst, burst, quiet, quiet]
+    shifted = np.roll(quiet, 9, axis=1)  # the gel moved
+    frames += [shifted] * 4
+    frames += [digit.render(ContactSpec("circle_large", (100.0, 140.0)), 8.0).frame, quiet]
+    return [np.ascontiguousarray(f) for f in frames]
+
+
+@pytest.mark.parametrize("options", [GateOptions(), GateOptions(downscale=2), GateOptions(downscale=8),
+                                     GateOptions(downscale=3), GateOptions(blur=5), GateOptions(trust=False),
+                                     GateOptions.gelsight_mini()],
+                         ids=["default", "x2", "x8", "x3", "blur5", "no-trust", "gelsight-mini"])
+def test_the_gate_equals_its_opencv_oracle_over_a_virtual_sequence(options):
+    results = _run_both(_virtual_sequence(), options)
+    if options.trust and options.downscale == 4:  # the sequence exercises what it is meant to
+        assert any(r.contact for r in results) and any(r.invalid for r in results)
+        assert any(r.mismatch for r in results) and any(not r.contact for r in results[12:])
+
+
+def test_the_gate_equals_its_opencv_oracle_on_the_real_aurova_grasp():
+    background = cv2.imread(str(shared_data("digit_backgrounds", "aurova_background_b.png")), cv2.IMREAD_COLOR)
+    frames = [f for f in _real_frames() if f.shape == background.shape]
+    results = _run_both(frames, GateOptions(), np.ascontiguousarray(background))
+    assert any(r.contact for r in results)
+
+
+def test_changed_model_rounds_like_opencv_next_to_the_half_grey_levels():
+    """Backgrounds whose model lands next to k + 0.5: a model computed another way (float32 product then
+    sum, an FMA) moves some of them across the rounding boundary."""
+    rng = np.random.default_rng(11)
+    h, w = 60, 80
+    model = np.zeros((3, 4), np.float32)
+    for _ in range(20):
+        gain = (rng.random(3) * 1.6 + 0.2).astype(np.float32)
+        offset = (rng.random(3) * 80 - 40).astype(np.float32)
+        model[[0, 1, 2], [0, 1, 2]], model[:, 3] = gain, offset
+        target = rng.integers(0, 256, (h, w, 3)) + 0.5 + rng.normal(0, 1e-5, (h, w, 3))
+        bg = ((target - offset) / gain).astype(np.float32)
+        fw = FrameWork((h, w, 3), 1, 1, 10.0)
+        work = rng.integers(0, 256, (h, w, 3), dtype=np.uint8)
+        np.copyto(fw.work, work)
+        fw.changed(bg, model)
+        ad, mask = changed_cv(work, bg, model, 10.0)
+        assert np.array_equal(fw.ad, ad) and np.array_equal(fw.mask, mask)
