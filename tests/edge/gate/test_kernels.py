@@ -188,3 +188,30 @@ def test_changed_model_rounds_like_opencv_next_to_the_half_grey_levels():
         fw.changed(bg, model)
         ad, mask = changed_cv(work, bg, model, 10.0)
         assert np.array_equal(fw.ad, ad) and np.array_equal(fw.mask, mask)
+
+
+def test_a_kernel_compiles_in_memory_when_no_cache_folder_is_writable(monkeypatch, caplog):
+    """numba refuses cache=True where no cache folder is writable (a read-only install without
+    a home folder); the gate's kernels are then compiled without a disk cache, with a warning
+    naming NUMBA_CACHE_DIR, instead of failing to import."""
+    import logging
+
+    import numba as nb
+    from tactile_force.edge.gate import kernels
+
+    real = nb.njit
+
+    def no_locator(*args, **kwargs):
+        if kwargs.get("cache"):
+            raise RuntimeError("cannot cache function 'f': no locator available for file 'x.py'")
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(nb, "njit", no_locator)
+
+    def add_one(x):
+        return x + 1
+
+    with caplog.at_level(logging.WARNING, logger="tactile_force.edge.gate.kernels"):
+        f = kernels._compiled()(add_one)
+    assert f(41) == 42
+    assert "NUMBA_CACHE_DIR" in caplog.text and "no locator available" in caplog.text
