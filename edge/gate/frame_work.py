@@ -116,6 +116,14 @@ class FrameWork:
             if blur and not self._blur3:
                 self._blur_cv()
             return
+        self.reduce_without_kernels(frame)
+        if blur:
+            self.blur_small()
+
+    def reduce_without_kernels(self, frame: np.ndarray) -> None:
+        """``small`` by OpenCV: the exact box average (edge/gate/reduce.py) when the factor divides
+        the frame, else INTER_LINEAR at x2 and one pixel per block above."""
+        s = self.downscale
         if self.reducer is not None:
             self.reducer(frame, out=self.small)
         elif s > 1:
@@ -123,8 +131,6 @@ class FrameWork:
                        interpolation=cv2.INTER_LINEAR if s <= 2 else cv2.INTER_NEAREST)
         else:
             np.copyto(self.small, frame)
-        if blur:
-            self.blur_small()
 
     def blur_small(self) -> None:
         """``work`` = the blur of ``small``."""

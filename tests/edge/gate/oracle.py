@@ -39,14 +39,7 @@ class OracleFrameWork(FrameWork):
     """:class:`FrameWork` with every step done by the OpenCV calls (the gate before the kernels)."""
 
     def reduce(self, frame: np.ndarray, blur: bool = False) -> None:
-        s = self.downscale
-        if self.reducer is not None:
-            self.reducer(frame, out=self.small)
-        elif s > 1:
-            cv2.resize(frame, (self.small.shape[1], self.small.shape[0]), dst=self.small,
-                       interpolation=cv2.INTER_LINEAR if s <= 2 else cv2.INTER_NEAREST)
-        else:
-            np.copyto(self.small, frame)
+        self.reduce_without_kernels(frame)
         if blur:
             self.blur_small()
 
