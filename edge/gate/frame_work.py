@@ -13,6 +13,7 @@ a working image under 2 x 2 pixels keeps the OpenCV calls below.
 
 from __future__ import annotations
 
+import functools
 import importlib
 from types import ModuleType
 
@@ -28,16 +29,20 @@ __all__ = ["FrameWork", "load_kernels"]
 THUMB_CELL_PX = 16
 
 
-_loaded: list[ModuleType] = []
-
-
+@functools.cache
 def _kernels() -> ModuleType:
     """edge/gate/kernels.py, imported (numba loaded) and every kernel loaded on first use."""
-    if not _loaded:
-        k = importlib.import_module(".kernels", __package__)
-        k.warm()
-        _loaded.append(k)
-    return _loaded[0]
+    k = importlib.import_module(".kernels", __package__)
+    k.warm()
+    return k
+
+
+def _gaussian(src: np.ndarray, dst: np.ndarray, b: int) -> None:
+    """``dst`` = ``src`` blurred by an odd ``b`` x ``b`` Gaussian (``b`` = 1: a copy)."""
+    if b > 1:
+        cv2.GaussianBlur(src, (b, b), 0, dst=dst)
+    else:
+        np.copyto(dst, src)
 
 
 def load_kernels() -> None:
@@ -140,11 +145,7 @@ class FrameWork:
             self._blur_cv()
 
     def _blur_cv(self) -> None:
-        b = self.blur
-        if b > 1:
-            cv2.GaussianBlur(self.small, (b, b), 0, dst=self.work)
-        else:
-            np.copyto(self.work, self.small)
+        _gaussian(self.small, self.work, self.blur)
 
     def thumbnail(self) -> np.ndarray:
         """``thumb`` = ``work`` shrunk to the thumbnail (INTER_LINEAR)."""
@@ -170,11 +171,7 @@ class FrameWork:
             cv2.absdiff(self.small, self.work, dst=self._noise_d)
         else:
             cv2.resize(frame, (self.sub.shape[1], self.sub.shape[0]), dst=self.sub, interpolation=cv2.INTER_NEAREST)
-            b = self.blur
-            if b > 1:
-                cv2.GaussianBlur(self.sub, (b, b), 0, dst=self._sub_blur)
-            else:
-                np.copyto(self._sub_blur, self.sub)
+            _gaussian(self.sub, self._sub_blur, self.blur)
             cv2.absdiff(self.sub, self._sub_blur, dst=self._noise_d)
         return float(max(cv2.mean(self._noise_d)[:3]))
 
