@@ -66,10 +66,10 @@ def _mask_stats(frame, mask, colany, box):  # pragma: no cover - compiled
         for x in range(w):
             colany[x] |= mk[x]
         fr = frame[y]
-        top = np.uint8(0)
+        full = np.uint8(0)
         for i in range(3 * w):
-            top = max(top, fr[i])
-        if top == 255:  # a channel at 255 in this row: count the contact pixels that hold one
+            full |= np.uint8(fr[i] == 255)
+        if full != 0:  # a channel at 255 in this row: count the contact pixels that hold one
             for x in range(w):
                 hit = (fr[3 * x] == 255) | (fr[3 * x + 1] == 255) | (fr[3 * x + 2] == 255)
                 sat += np.int64(hit & (mk[x] != 0))
@@ -137,26 +137,38 @@ def gradients_divergence(frame, mask, bg, glut, work, div, scratch, inv_width, t
             inside = one if mk[x] != 0 else zero
             ox[x] = glut[np.uint32(2) * cell] * inside
             oy[x] = glut[np.uint32(2) * cell + np.uint32(1)] * inside
-    for y in range(h):  # the mean slope of each forward difference (x: along the row)
-        ox = gx[y]
-        for x in range(w - 1):
-            ox[x] = (ox[x] + ox[x + 1]) * half
-        ox[w - 1] = ox[w - 1] * half
-    for y in range(h - 1):  # (y: down the rows; row y + 1 still holds its own slopes)
-        oy = gy[y]
-        nx = gy[y + 1]
-        for x in range(w):
-            oy[x] = (oy[x] + nx[x]) * half
-    last = gy[h - 1]
-    for x in range(w):
-        last[x] = last[x] * half
+    # Beyond rows r0 - 2 .. r1 and columns c0 - 2 .. c1 every gradient is +0, so the mean slopes
+    # and the divergence are +0 there, as the full pass gives: the passes cover that window only.
+    y0, y1 = max(r0 - 2, 0), min(r1 + 1, h)
+    x0, x1 = max(c0 - 2, 0), min(c1 + 1, w)
     for i in range(h - 1):
         d = div[i]
-        a = gx[i + 1]
-        a1 = a[1:]
-        u1 = gy[i + 1][1:]
-        v1 = gy[i][1:]
         for j in range(w - 1):
+            d[j] = zero
+    nx_ = x1 - x0  # (loops index views from 0: no wrap-around checks, so they vectorise)
+    for y in range(y0, y1):  # the mean slope of each forward difference (x: along the row)
+        ox = gx[y][x0:x1]
+        ox1 = gx[y][x0 + 1:x1]
+        for x in range(nx_ - 1):
+            ox[x] = (ox[x] + ox1[x]) * half
+        ox[nx_ - 1] = ox[nx_ - 1] * half if x1 == w else (ox[nx_ - 1] + gx[y][x1]) * half
+    for y in range(y0, y1 - 1):  # (y: down the rows; row y + 1 still holds its own slopes)
+        oy = gy[y][x0:x1]
+        ny = gy[y + 1][x0:x1]
+        for x in range(nx_):
+            oy[x] = (oy[x] + ny[x]) * half
+    last = gy[y1 - 1][x0:x1]
+    ny = gy[min(y1, h - 1)][x0:x1]
+    for x in range(nx_):
+        last[x] = last[x] * half if y1 == h else (last[x] + ny[x]) * half
+    j0, j1 = max(x0 - 1, 0), min(x1, w - 1)
+    for i in range(max(y0 - 1, 0), min(y1, h - 1)):
+        d = div[i][j0:j1]
+        a = gx[i + 1][j0:j1]
+        a1 = gx[i + 1][j0 + 1:j1 + 1]
+        u1 = gy[i + 1][j0 + 1:j1 + 1]
+        v1 = gy[i][j0 + 1:j1 + 1]
+        for j in range(j1 - j0):
             d[j] = ((a1[j] - a[j]) + u1[j]) - v1[j]
     return n, sat
 
