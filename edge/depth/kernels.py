@@ -3,15 +3,15 @@ imports this module when it builds a stage that uses them, so importing the pack
 numba).
 
 They serve the shipped compact depth bundles' path: a ``calibrate-depth`` LUT, exact mode, a
-downscale k > 1, float32 solver, the gate's reduced image and uint8 mask. Each one does, in one
-pass per grid, what a chain of numpy ufuncs did, with the same float32 operations in the same
-order (no fastmath: LLVM neither reorders nor fuses them), so the results are equal bit for bit,
-signed zeros included; tests/edge/depth/oracle.py keeps the numpy chain as the test oracle:
+downscale k > 1, float32 solver, the gate's reduced image and uint8 mask. Each does, in one call,
+what a chain of OpenCV and numpy calls did, with the same float32 operations in the same order (no
+fastmath: LLVM neither reorders nor fuses them), so the results are equal bit for bit, signed
+zeros included; tests/edge/depth/oracle.py keeps that chain as the test oracle:
 
-- :func:`mask_stats`: the contact pixels (mask != 0), those with a channel at 255 and the mask's
-  bounding box (``cv2.countNonZero``, ``cv2.inRange`` + ``cv2.bitwise_and``, ``cv2.boundingRect``).
-- :func:`lut_divergence`: colour difference -> LUT cell -> guarded gradient (x k) inside the box,
-  times the 0/1 mask; the mean slope of each forward difference; the backward-difference
+- :func:`gradients_divergence`: the contact pixels (mask != 0), those with a channel at 255 and
+  the mask's bounding box (``cv2.countNonZero``, ``cv2.inRange`` + ``cv2.bitwise_and``,
+  ``cv2.boundingRect``); then colour difference -> LUT cell -> guarded gradient (x k) inside the
+  box, times the 0/1 mask; the mean slope of each forward difference; the backward-difference
   divergence on the interior (what the Poisson solver's DST-I products read).
 - :func:`depth_image`: the solved interior into the height map (zero first row and column), the
   finite check, and ``rint(clip(h * levels_per_px, 0, 255) * mask)`` as uint8.

@@ -23,6 +23,11 @@ reduction, edge/gate/reduce.py, the runtime's one implementation; the mask by "a
 k x k block"), so both give the same depth when the frame was reduced the same way. Heights
 stay in full-resolution pixels (see :class:`DepthOptions`, Notes), so ``levels_per_px`` means
 the same at every ``downscale``.
+
+With a ``calibrate-depth`` LUT in exact mode at k > 1 (float32, the compact bundles), the gate's
+reduced image and uint8 mask take two compiled passes around the DST-I products
+(edge/depth/kernels.py, numba, loaded when such a stage is built): the same values, bit for bit,
+as the numpy path every other input takes.
 """
 
 from __future__ import annotations
@@ -376,9 +381,9 @@ class DepthStage:
             return self._fail(f"depth stage error: {exc.__class__.__name__}: {exc}")
 
     def _process_kernels(self, frame: np.ndarray, mask: np.ndarray) -> DepthResult:
-        """Exact mode with the LUT on the depth grid in three compiled passes around the DST-I
-        products: the same values as the numpy path (mask stats, :meth:`_lut_gradients_in_box`,
-        :meth:`_integrate`), bit for bit. ``frame``: C-contiguous grid image, ``mask``: C-contiguous
+        """Exact mode with the LUT on the depth grid in two compiled passes around the DST-I
+        products: the same values as the numpy path (mask counts and saturation,
+        :meth:`_lut_gradients_in_box`, :meth:`_integrate`), bit for bit. ``frame``: C-contiguous grid image, ``mask``: C-contiguous
         grid uint8 mask."""
         kern = self._kern
         assert kern is not None and self.lut is not None
