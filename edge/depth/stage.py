@@ -383,8 +383,8 @@ class DepthStage:
     def _process_kernels(self, frame: np.ndarray, mask: np.ndarray) -> DepthResult:
         """Exact mode with the LUT on the depth grid in two compiled passes around the DST-I
         products: the same values as the numpy path (mask counts and saturation,
-        :meth:`_lut_gradients_in_box`, :meth:`_integrate`), bit for bit. ``frame``: C-contiguous grid image, ``mask``: C-contiguous
-        grid uint8 mask."""
+        :meth:`_lut_gradients_in_box`, :meth:`_integrate`), bit for bit. ``frame``: C-contiguous
+        grid image, ``mask``: C-contiguous grid uint8 mask."""
         kern = self._kern
         assert kern is not None and self.lut is not None
         h, w = self._grid_hw
