@@ -217,15 +217,17 @@ class DepthStage:
         self._ref_gy: np.ndarray | None = None
         rows, cols = np.mgrid[0:h, 0:w]
         self._cell_of = ((rows // 2) * (w // 2) + cols // 2).ravel()  # mapping_step 2: each pixel's 2x2 cell
-        #: the compiled kernels (edge/depth/kernels.py) where they apply: a LUT, exact mode at a
-        #: downscale k > 1 (the compact depth bundles), float32 DST-I products; else None (numpy)
-        self._kern = None
+        #: whether the compiled kernels (edge/depth/kernels.py) apply: a LUT, exact mode at a
+        #: downscale k > 1 (the compact depth bundles), float32 DST-I products; else the numpy path
+        self._uses_kernels = False
         if (self.lut is not None and options.mode == "exact" and k > 1 and dtype is np.float32
                 and self.solver.backend == "matmul"):
             from . import kernels
 
             kernels.warm()
-            self._kern = kernels
+            self._uses_kernels = True
+            self._gradients_divergence = kernels.gradients_divergence
+            self._depth_image = kernels.depth_image
             self._bg_rows = np.ascontiguousarray(self._bg_box.reshape(h, w * 3))
             self._glut_flat = np.ascontiguousarray(self._glut.ravel())  # gx, gy interleaved per cell
             self._scratch = np.zeros(4 + 3 * w, np.int64)  # the mask's box, its columns, a row's bins
@@ -359,7 +361,7 @@ class DepthStage:
                 if problem is not None:
                     return self._fail(f"invalid input: {problem}")
             frame = self._grid_frame(frame)
-            if (self._kern is not None and type(mask) is np.ndarray and mask.dtype == np.uint8
+            if (self._uses_kernels and type(mask) is np.ndarray and mask.dtype == np.uint8
                     and mask.shape == self._grid_hw and mask.flags.c_contiguous
                     and frame.shape == self.grid_frame_shape and frame.flags.c_contiguous):
                 return self._process_kernels(frame, mask)  # the gate's reduced image and mask
@@ -385,19 +387,18 @@ class DepthStage:
         products: the same values as the numpy path (mask counts and saturation,
         :meth:`_lut_gradients_in_box`, :meth:`_integrate`), bit for bit. ``frame``: C-contiguous
         grid image, ``mask``: C-contiguous grid uint8 mask."""
-        kern = self._kern
-        assert kern is not None and self.lut is not None
+        assert self.lut is not None
         h, w = self._grid_hw
         rows = frame.reshape(h, w * 3)
-        contact_px, sat = kern.gradients_divergence(rows, mask, self._bg_rows, self._glut_flat, self._work, self._div,
-                                                    self._scratch, self._inv_width, self._top, self.lut.bins,
-                                                    self.options.saturated_fraction)
+        contact_px, sat = self._gradients_divergence(rows, mask, self._bg_rows, self._glut_flat, self._work,
+                                                     self._div, self._scratch, self._inv_width, self._top,
+                                                     self.lut.bins, self.options.saturated_fraction)
         if contact_px == 0:
             return self._fail("empty mask: no contact to reconstruct")
         if sat > self.options.saturated_fraction * contact_px:
             return self._fail(f"saturated: {sat}/{contact_px} contact pixels at 255", contact_px)
         interior = self.solver.solve_divergence(self._div)
-        if not kern.depth_image(interior, mask, self._levels, self._height, self._depth_rows):
+        if not self._depth_image(interior, mask, self._levels, self._height, self._depth_rows):
             return self._fail("non-finite height after integration", contact_px)  # cannot happen: guarded
         return DepthResult(self._depth.copy(), True, "", self._height, contact_px, 0)
 

@@ -52,12 +52,12 @@ def _gated(frames, background):
 
 @pytest.mark.parametrize("name", ["d", "rgbmod_d"])
 def test_shipped_depth_bundles_use_the_kernels(name):
-    assert _stage(name)._kern is not None
+    assert _stage(name)._uses_kernels
 
 
 def test_full_resolution_and_float64_stay_on_numpy():
-    assert DepthStage(DepthOptions(mapping=MAPPING))._kern is None
-    assert DepthStage(DepthOptions(mapping=MAPPING, downscale=4, solver_dtype="float64"))._kern is None
+    assert DepthStage(DepthOptions(mapping=MAPPING))._uses_kernels is False
+    assert DepthStage(DepthOptions(mapping=MAPPING, downscale=4, solver_dtype="float64"))._uses_kernels is False
 
 
 def test_virtual_contact_frames_equal_the_numpy_chain():
