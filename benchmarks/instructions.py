@@ -263,9 +263,10 @@ def measure(readings: int, variants: list[str] | None = None, log=print,
         # that writes the .pyc files counts tens of millions of instructions more than the next),
         # and numba's cache then holds the gate's kernels compiled for the CPU valgrind reports
         # (it is not the host's: without it every counted run compiles them again, billions of
-        # instructions that differ from run to run).
+        # instructions that differ from run to run). A depth bundle, so the depth stage's kernels are
+        # compiled there too.
         callgrind.run([sys.executable, "-m", f"{__package__ or 'benchmarks'}.instructions", "--worker",
-                       str(models_dir() / VARIANTS[-1][0]), str(frames), "none", "0"], tmp / "callgrind.first.out",
+                       str(models_dir() / "rgbmod_d"), str(frames), "none", "0"], tmp / "callgrind.first.out",
                       _env())
         for name, label in VARIANTS:
             if variants is None or name in variants:

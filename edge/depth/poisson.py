@@ -138,14 +138,20 @@ class PoissonSolver:
         d -= gy[:-1, 1:]
         return d
 
+    def solve_divergence(self, d: np.ndarray) -> np.ndarray:
+        """The interior heights (H-1) x (W-1) whose 5-point Laplacian is ``d`` (the
+        :meth:`divergence`, or the same values computed elsewhere; ``d`` may be overwritten):
+        DST-I, divide by the eigenvalues, DST-I. Returns an internal buffer (overwritten by the
+        next call)."""
+        spec = self._dst2d(d)
+        spec *= self._inv_lam
+        return self._dst2d(spec)
+
     def solve(self, gx: np.ndarray, gy: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """Height map H x W (same units as the gradients times pixels) from gradients."""
         if gx.shape != self.shape or gy.shape != self.shape:
             raise ValueError(f"gradients shapes {gx.shape}, {gy.shape}: expected {self.shape} (rows, cols)")
-        d = self.divergence(gx, gy)
-        spec = self._dst2d(d)
-        spec *= self._inv_lam
-        interior = self._dst2d(spec)
+        interior = self.solve_divergence(self.divergence(gx, gy))
         if out is None:
             out = np.zeros(self.shape, dtype=self.dtype)
         else:
