@@ -21,25 +21,11 @@ The DST-I products between them stay numpy's (OpenBLAS sgemm on the same operand
 
 from __future__ import annotations
 
-import logging
-from collections.abc import Callable
-
-import numba as nb
 import numpy as np
 
-_log = logging.getLogger(__name__)
+from ..compiled import compiled
 
-
-def _compiled(fn: Callable) -> Callable:
-    """``numba.njit`` cached on disk (next to this module, else the user's cache folder or
-    ``NUMBA_CACHE_DIR``); where no cache folder is writable the kernel is compiled in memory on
-    every run and a warning says how to keep it."""
-    try:
-        return nb.njit(cache=True, nogil=True, boundscheck=False)(fn)
-    except RuntimeError as exc:  # numba: "cannot cache function ...: no locator available"
-        _log.warning("depth stage kernels: no writable cache folder (%s); they are compiled on every run. "
-                     "Set NUMBA_CACHE_DIR to a writable folder to compile them once.", exc)
-        return nb.njit(nogil=True, boundscheck=False)(fn)
+_compiled = compiled("depth stage kernels")
 
 
 @_compiled

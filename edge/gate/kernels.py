@@ -21,34 +21,11 @@ calls as the oracle):
 
 from __future__ import annotations
 
-import logging
-from collections.abc import Callable
-from typing import Literal
-
-import numba as nb
 import numpy as np
 
-_log = logging.getLogger(__name__)
+from ..compiled import compiled
 
-
-def _compiled(inline: Literal["never", "always"] = "never") -> Callable[[Callable], Callable]:
-    """``numba.njit`` with the kernels' options, cached on disk (next to this module, else in
-    the user's cache folder or ``NUMBA_CACHE_DIR``). Where no cache folder is writable (a
-    read-only install without a home folder) numba refuses to cache: the kernel is then compiled
-    in memory on every run (seconds at the first gate), and a warning says how to keep it."""
-
-    def deco(fn: Callable) -> Callable:
-        try:
-            return nb.njit(cache=True, nogil=True, boundscheck=False, inline=inline)(fn)
-        except RuntimeError as exc:  # numba: "cannot cache function ...: no locator available"
-            _log.warning("contact gate kernels: no writable cache folder (%s); they are compiled on every run. "
-                         "Set NUMBA_CACHE_DIR to a writable folder to compile them once.", exc)
-            return nb.njit(nogil=True, boundscheck=False, inline=inline)(fn)
-
-    return deco
-
-
-_jit = _compiled()
+_jit = compiled("contact gate kernels")
 
 
 #: channels per pixel (BGR): a compile-time constant, so the horizontal neighbours' distance is known
@@ -91,7 +68,7 @@ def _reduce_rows(frame, y, k, v):  # pragma: no cover - compiled
     return src
 
 
-@_compiled(inline="always")
+@compiled("contact gate kernels", inline="always")
 def _g(left, mid, right):  # pragma: no cover - compiled
     """One blurred value from the vertical sums of three neighbours: (l + 2 m + r + 8) >> 4."""
     return np.uint8((np.uint32(left) + np.uint32(2) * np.uint32(mid) + np.uint32(right) + np.uint32(8)) >> np.uint32(4))

@@ -197,7 +197,7 @@ def test_a_kernel_compiles_in_memory_when_no_cache_folder_is_writable(monkeypatc
     import logging
 
     import numba as nb
-    from tactile_force.edge.gate import kernels
+    from tactile_force.edge import compiled
 
     real = nb.njit
 
@@ -211,7 +211,8 @@ def test_a_kernel_compiles_in_memory_when_no_cache_folder_is_writable(monkeypatc
     def add_one(x):
         return x + 1
 
-    with caplog.at_level(logging.WARNING, logger="tactile_force.edge.gate.kernels"):
-        f = kernels._compiled()(add_one)
+    with caplog.at_level(logging.WARNING, logger="tactile_force.edge.compiled"):
+        f = compiled.compiled("contact gate kernels")(add_one)
     assert f(41) == 42
     assert "NUMBA_CACHE_DIR" in caplog.text and "no locator available" in caplog.text
+    assert "contact gate kernels" in caplog.text
