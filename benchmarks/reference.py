@@ -119,7 +119,7 @@ def main(argv: list[str] | None = None) -> int:
                     help="install the int8 bundles of " + ", ".join(SHIPPED_DEPTH_BUNDLES.values())
                     + " as edge/models/" + ", edge/models/".join(SHIPPED_DEPTH_BUNDLES))
     ap.add_argument("--fast-bundle", action="store_true",
-                    help=f"install {FAST_MODEL}'s int8 bundle as edge/models/fast (train it: --configs {FAST_MODEL})")
+                    help=f"install {FAST_MODEL}'s fp32 bundle as edge/models/fast (train it: --configs {FAST_MODEL})")
     args = ap.parse_args(argv)
     if args.network_input_default:
         network_input_default()
@@ -150,7 +150,7 @@ def main(argv: list[str] | None = None) -> int:
             path = install_shipped_bundle(folder, cache_dir() / "models" / name / "int8")
             log(f"installed {name} at {path}")
     if args.fast_bundle:
-        path = install_fast_bundle(cache_dir() / "models" / FAST_MODEL / "int8")
+        path = install_fast_bundle(cache_dir() / "models" / FAST_MODEL)
         log(f"installed {FAST_MODEL} at {path}")
     return 0
 

@@ -167,26 +167,38 @@ class FastBundleError(TactileForceError):
     """A trained fast bundle that misses its goal against the default; nothing was installed."""
 
 
-def install_fast_bundle(int8_bundle: Path) -> Path:
-    """Install a trained :data:`FAST_MODEL` int8 bundle as edge/models/fast
+def install_fast_bundle(model_dir: Path) -> Path:
+    """Install a trained :data:`FAST_MODEL`'s fp32 bundle (``model_dir``/fp32) as edge/models/fast
     (:func:`install_shipped_bundle` with :data:`FAST_NOTE`) after checking its goals against
-    the shipped default: RE on the synthetic test split (both manifests' ``error.vs_truth``,
-    measured on the same frames with the runtime's reduction) within
-    ``FAST_TARGETS["re_margin"]``; the instruction count is checked by
+    the shipped default: RE on the synthetic test split (the int8 bundle's
+    ``error.fp32_vs_truth``, the fp32 graph measured on the same frames as the default's
+    ``error.vs_truth``) within ``FAST_TARGETS["re_margin"]``. fp32, not int8: at this width
+    (8 to 64 channels) onnxruntime's int8 convolution spends most of a call on im2col copies
+    and its fp32 one needs about 0.64x the instructions; the count is checked by
     ``python -m benchmarks.bare_instructions edge/models/default edge/models/fast``."""
-    from tactile_force.edge.bundle.store import load_bundle
+    import copy
+    import dataclasses
+    import tempfile
 
-    fast, default = load_bundle(int8_bundle).manifest, load_bundle(default_bundle_path()).manifest
-    if fast.error is None or fast.error.vs_truth is None or default.error is None or default.error.vs_truth is None:
-        raise FastBundleError(f"{int8_bundle}: this bundle and the default need error.vs_truth on the synthetic test "
-                              "split (make_bundles measures it)")
-    re_fast, re_default = fast.error.vs_truth.re_mean, default.error.vs_truth.re_mean
+    from tactile_force.edge.bundle.store import load_bundle, write_bundle
+
+    int8, fp32 = load_bundle(model_dir / "int8"), load_bundle(model_dir / "fp32")
+    fast, default = int8.manifest, load_bundle(default_bundle_path()).manifest
+    if (fast.error is None or fast.error.fp32_vs_truth is None
+            or default.error is None or default.error.vs_truth is None):
+        raise FastBundleError(f"{model_dir}: the int8 bundle needs error.fp32_vs_truth and the default error.vs_truth "
+                              "on the synthetic test split (make_bundles measures them)")
+    re_fast, re_default = fast.error.fp32_vs_truth.re_mean, default.error.vs_truth.re_mean
     if re_fast > re_default + FAST_TARGETS["re_margin"]:
-        raise FastBundleError(f"{int8_bundle}: synthetic test RE {re_fast:.4f} is more than "
+        raise FastBundleError(f"{model_dir}: synthetic test RE {re_fast:.4f} is more than "
                               f"{FAST_TARGETS['re_margin']} above the default's {re_default:.4f}; train longer "
                               "(--epochs) before installing it")
-    path = install_shipped_bundle("fast", int8_bundle, FAST_NOTE)
-    log(f"fast bundle: synthetic test RE {re_fast:.4f} (default {re_default:.4f})")
+    m = fp32.manifest
+    m.error = dataclasses.replace(copy.deepcopy(fast.error), vs_truth=fast.error.fp32_vs_truth, vs_fp32=None)
+    with tempfile.TemporaryDirectory() as tmp:
+        src = write_bundle(Path(tmp) / "fp32", fp32.onnx_path.read_bytes(), m, overwrite=True).path
+        path = install_shipped_bundle("fast", src, FAST_NOTE)
+    log(f"fast bundle (fp32): synthetic test RE {re_fast:.4f} (default {re_default:.4f})")
     return path
 
 

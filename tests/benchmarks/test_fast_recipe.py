@@ -26,11 +26,12 @@ def test_install_fast_bundle_refuses_one_too_far_from_the_default(tmp_path):
     m = src.manifest
     assert m.error is not None and m.error.vs_truth is not None
     worse = dataclasses.replace(m.error.vs_truth, re_mean=m.error.vs_truth.re_mean + 0.05)
-    m.error = dataclasses.replace(m.error, vs_truth=worse)
-    candidate = write_bundle(tmp_path / "candidate", src.onnx_path.read_bytes(), m).path
+    m.error = dataclasses.replace(m.error, fp32_vs_truth=worse)  # the fp32 graph's RE is what is checked
+    for kind in ("int8", "fp32"):  # a trained model's folder: both bundles
+        write_bundle(tmp_path / "candidate" / kind, src.onnx_path.read_bytes(), m)
     fast = default_bundle_path().parent / "fast"
-    existed = fast.exists()
-    with pytest.raises(reference.FastBundleError, match="within|more than 0.03 above the default"):
-        reference.install_fast_bundle(candidate)
-    assert fast.exists() == existed
+    before = (fast / "model.json").read_bytes() if fast.exists() else None
+    with pytest.raises(reference.FastBundleError, match="more than 0.03 above the default"):
+        reference.install_fast_bundle(tmp_path / "candidate")
+    assert ((fast / "model.json").read_bytes() if fast.exists() else None) == before
     shutil.rmtree(tmp_path / "candidate")

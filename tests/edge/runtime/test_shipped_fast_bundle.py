@@ -23,7 +23,8 @@ def test_listed_after_the_default_with_its_cheaper_architecture():
     found = shipped_bundles()
     assert list(found)[0] == "default" and "fast" in found
     fast, default = (load_bundle(found[n]).manifest for n in ("fast", "default"))
-    assert fast.variant.value == "rgbmod" and fast.precision is Precision.INT8_STATIC
+    # fp32: at 8-64 channels ORT's int8 convolution is mostly im2col copies, its fp32 one is cheaper
+    assert fast.variant.value == "rgbmod" and fast.precision is Precision.FP32
     assert fast.architecture.blocks == [1, 1, 1, 1] and default.architecture.blocks == [2, 2, 2, 2]
     assert fast.architecture.network_input_hw == default.architecture.network_input_hw  # one reduction per frame
     assert fast.architecture.gmacs < 0.25 * default.architecture.gmacs
