@@ -263,13 +263,15 @@ def measure(readings: int, variants: list[str] | None = None, log=print,
         # that writes the .pyc files counts tens of millions of instructions more than the next),
         # and numba's cache then holds the gate's kernels compiled for the CPU valgrind reports
         # (it is not the host's: without it every counted run compiles them again, billions of
-        # instructions that differ from run to run). A depth bundle, so the depth stage's kernels are
-        # compiled there too.
+        # instructions that differ from run to run). A depth bundle where one is counted, so the depth
+        # stage's kernels are compiled there too (else the first counted bundle: compiling them under
+        # valgrind takes a minute).
+        names = [name for name, _ in VARIANTS if variants is None or name in variants]
+        first = "rgbmod_d" if {"d", "rgbmod_d"} & set(names) else (names[0] if names else "default")
         callgrind.run([sys.executable, "-m", f"{__package__ or 'benchmarks'}.instructions", "--worker",
-                       str(models_dir() / "rgbmod_d"), str(frames), "none", "0"], tmp / "callgrind.first.out",
-                      _env())
+                       str(models_dir() / first), str(frames), "none", "0"], tmp / "callgrind.first.out", _env())
         for name, label in VARIANTS:
-            if variants is None or name in variants:
+            if name in names:
                 out.append(count_variant(models_dir() / name, label, frames, readings, tmp, log, modes))
     return out
 

@@ -106,7 +106,7 @@ def test_a_manifest_input_scale_contradicting_the_graph_input_fails_verify(tmp_p
 
 def test_the_precision_verify_finds_on_every_kind_of_graph(make_bundle, tmp_path):
     """One reading of the graph (graph_facts.graph_precision) for verify and bench: the shipped
-    int8-static graphs, an fp32 graph, its fp16 conversion and its dynamic int8 quantization."""
+    int8-static graphs and the fp32 fast one, an fp32 graph, its fp16 conversion and its dynamic int8 quantization."""
     import onnx
     from onnx import TensorProto, helper
     from onnxruntime.quantization import QuantType, quantize_dynamic
@@ -114,10 +114,11 @@ def test_the_precision_verify_finds_on_every_kind_of_graph(make_bundle, tmp_path
     from tactile_force.edge.bundle.graph_facts import graph_facts, graph_precision, manifest_problems
     from tactile_force.edge.scene import shipped_bundles
 
-    for path in shipped_bundles().values():
+    shipped = {"default": "int8-static", "d": "int8-static", "rgbmod_d": "int8-static", "fast": "fp32"}
+    for name, path in shipped_bundles().items():
         b = load_bundle(path)
         facts = graph_facts(b.onnx_path)
-        assert graph_precision(facts) == "int8-static" and manifest_problems(b.manifest, facts) == [], path
+        assert graph_precision(facts) == shipped[name] and manifest_problems(b.manifest, facts) == [], path
     fp32 = load_bundle(make_bundle("verify-kinds"))
     assert graph_precision(graph_facts(fp32.onnx_path)) == "fp32"
     model = onnx.load(str(fp32.onnx_path))
