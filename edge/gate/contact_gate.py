@@ -465,8 +465,9 @@ class ContactGate:
         self._full_area = h * w
 
     def _reduce(self, arr: np.ndarray) -> None:
-        """The one downscale into ``_small``."""
-        self._fw.reduce(arr)
+        """The one downscale into ``_small``, its blur into ``_work`` and, where this frame's
+        judging reads it (background learning, ``trust``), its pixel-noise level, in one pass."""
+        self._fw.reduce(arr, blur=True, noise=self._bg is None or self.options.trust)
 
     def _prepare(self, arr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The frame's one downscale (an exact box average, edge/gate/reduce.py, into ``_small``;
@@ -475,8 +476,6 @@ class ContactGate:
         (edge/gate/frame_work.py)."""
         fw = self._fw
         if self._reduced_for is not arr:
-            fw.reduce(arr, blur=True)
-        else:
-            fw.blur_small()
+            self._reduce(arr)
         self._reduced_for = None
         return self._work, fw.thumbnail()

@@ -93,8 +93,8 @@ class FrameWork:
         steps = self.reducer is not None and self.reducer.reduction.method is Reduction.AREA_2X_STEPS
         blur3 = self.blur == 3 and wh >= 2 and ww >= 2
         self._k = _kernels()
-        self._t = np.empty(ww * 3, np.uint16)
-        self._v = np.empty((s, w * 3), np.uint16) if steps else None
+        self._t = np.empty(wh * ww * 3, np.uint16)  # the blur's vertical sums
+        self._v = np.empty((s, w * 3), np.uint8) if steps else None
         self._blur3 = blur3
         self._none = np.empty((0, ww * 3), np.uint8)  # "no blur" for the reduction kernel
         # Pixel noise is judged on one pixel per k x k block of the full frame above x2 (a box
@@ -103,21 +103,31 @@ class FrameWork:
         self._noise_kernel = self.sub is not None and blur3
         self._sub_blur = np.empty((wh, ww, 3), np.uint8)
         self._noise_d = np.empty((wh, ww, 3), np.uint8)
-        self._b = np.empty(ww * 3, np.uint16)
-        self._acc = np.empty(ww * 3, np.uint32)
+        self._acc = np.empty(48, np.uint32)
+        self._sub_blur1 = self._sub_blur.reshape(-1)
         self._sums = np.zeros(3, np.int64)
+        self._sub2 = self.sub.reshape(wh, ww * 3) if self.sub is not None else self._none
+        self._noise_of: np.ndarray | None = None  # the frame whose noise level the last reduce measured
+        self._noise_level = 0.0
         self._inv_n = 1.0 / (wh * ww)
         self._gt = np.empty(ww * 3, np.float64)  # the changed kernel's gain / offset per value of a row
         self._ot = np.empty(ww * 3, np.float64)
 
-    def reduce(self, frame: np.ndarray, blur: bool = False) -> None:
-        """The frame's one downscale into ``small``; with ``blur`` also its blur into ``work``
-        (one kernel call where the kernels apply)."""
+    def reduce(self, frame: np.ndarray, blur: bool = False, noise: bool = False) -> None:
+        """The frame's one downscale into ``small``; with ``blur`` also its blur into ``work``, with
+        ``noise`` also its pixel-noise level for the next :meth:`noise` of this frame (one kernel
+        call where the kernels apply)."""
         s = self.downscale
+        self._noise_of = None
         if self._v is not None:
             h, w = self.shape[:2]
+            noise = noise and self._noise_kernel
             self._k.reduce_blur(frame.reshape(h, w * 3), s, self._small2,
-                                self._work2 if blur and self._blur3 else self._none, self._v, self._t)
+                                self._work2 if blur and self._blur3 else self._none,
+                                self._sub2 if noise else self._none, self._v, self._t, self._sub_blur1, self._acc,
+                                self._sums)
+            if noise:
+                self._noise_of, self._noise_level = frame, self._level()
             if blur and not self._blur3:
                 self._blur_cv()
             return
@@ -157,16 +167,14 @@ class FrameWork:
         """Pixel-noise level of ``frame`` (the frame ``work`` was made from): the largest
         per-channel mean |subsample - its blur| above x2 (see ``sub``), else of |small - work|
         (grey levels)."""
+        if self._noise_of is frame:  # measured by the reduce of this frame: taken once
+            self._noise_of = None
+            return self._noise_level
         if self._noise_kernel:
             h, w = self.shape[:2]
-            sums = self._sums
-            sub = self.sub
-            assert sub is not None
-            self._k.noise_sums(frame.reshape(h, w * 3), self.downscale, sub.reshape(sub.shape[0], -1), self._t,
-                               self._b, self._acc, sums)
-            inv = self._inv_n  # cv2.mean: the integer sum times 1 / count
-            s0, s1, s2 = sums.tolist()
-            return max(s0 * inv, s1 * inv, s2 * inv)
+            self._k.noise_sums(frame.reshape(h, w * 3), self.downscale, self._sub2, self._t, self._sub_blur1,
+                               self._acc, self._sums)
+            return self._level()
         if self.sub is None:
             cv2.absdiff(self.small, self.work, dst=self._noise_d)
         else:
@@ -174,6 +182,12 @@ class FrameWork:
             _gaussian(self.sub, self._sub_blur, self.blur)
             cv2.absdiff(self.sub, self._sub_blur, dst=self._noise_d)
         return float(max(cv2.mean(self._noise_d)[:3]))
+
+    def _level(self) -> float:
+        """The noise level from the kernel's per-channel sums (cv2.mean: the integer sum times 1 / count)."""
+        inv = self._inv_n
+        s0, s1, s2 = self._sums.tolist()
+        return max(s0 * inv, s1 * inv, s2 * inv)
 
     def changed(self, bg: np.ndarray, model: np.ndarray) -> int:
         """|work - u8(gain x bg + offset)| per channel into ``ad`` and the changed mask (255 where a

@@ -2,15 +2,17 @@
 first use, so importing the package does not load numba).
 
 Every kernel works on H x (W*3) uint8 rows (a frame's C-contiguous H x W x 3 buffer seen as 2-D), so
-its inner loops run at unit stride and LLVM vectorises them (no loop writes the array it reads;
-uint32 arithmetic, no shifts of small types); horizontal neighbours are 3 apart. Each
+its inner loops run at unit stride and LLVM vectorises them (no loop writes the array it reads; sums
+in int32 stored as uint8, so LLVM runs them in 16-bit lanes); horizontal neighbours are 3 apart. Each
 one equals the OpenCV calls it replaces bit for bit (tests/edge/gate/test_kernels.py holds those
 calls as the oracle):
 
 - :func:`reduce_blur`: ``area-2x-steps`` (log2(k) exact 2 x 2 box averages, each
   ``(a + b + c + d + 2) >> 2``, OpenCV ``INTER_AREA`` at exactly 1/2) and the 3 x 3 Gaussian blur of
   the result (``cv2.GaussianBlur(src, (3, 3), 0)``: weights 1-2-1 x 1-2-1, ``(sum + 8) >> 4``,
-  ``BORDER_REFLECT_101``); :func:`blur3` the blur alone.
+  ``BORDER_REFLECT_101``), and where asked the noise sums below, in one call; :func:`blur3` the blur alone.
+  The 2 x 2 steps run over whole rows and the output keeps one value in k (:func:`_pick`: four pixels
+  per three 32-bit stores).
 - :func:`noise_sums`: the nearest subsample (``cv2.resize`` ``INTER_NEAREST`` at an integer factor:
   pixel (k y, k x)), its 3 x 3 blur, and the per-channel sums of |sub - blur|.
 - :func:`changed`: the model ``gain x background + offset`` (the product and sum in float64,
@@ -21,6 +23,8 @@ calls as the oracle):
 
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 
 from ..compiled import compiled
@@ -30,120 +34,184 @@ _jit = compiled("contact gate kernels")
 
 #: channels per pixel (BGR): a compile-time constant, so the horizontal neighbours' distance is known
 _C = 3
+#: 32-bit words hold their bytes lowest address first (every host numba runs on): :func:`_pick`
+_LITTLE = sys.byteorder == "little"
+#: offsets and counts of the flat loops: unsigned, so an index needs no negative-index check
+_U = np.uint64
 
 
 @_jit
-def _reduce_rows(frame, y, k, v):  # pragma: no cover - compiled
-    """Rows k*y .. k*y+k-1 of ``frame`` reduced into rows of ``v`` (k x W*3 uint16); returns the row
-    where the value of output pixel x, channel ch ends, at index 3*k*x + ch. No loop writes the
-    array it reads (so each one vectorises)."""
-    n = frame.shape[1]
-    half = k // 2
-    tmp = v[k - 1]
-    for p in range(half):  # first step: vertical pair sums, then horizontal pairs (3 apart)
-        r0 = frame[k * y + 2 * p]
-        r1 = frame[k * y + 2 * p + 1]
-        for i in range(n):
-            tmp[i] = np.uint16(np.uint32(r0[i]) + np.uint32(r1[i]))
-        vv = v[p]
-        for i in range(n - _C):
-            vv[i] = np.uint16((np.uint32(tmp[i]) + np.uint32(tmp[i + _C]) + np.uint32(2)) >> np.uint32(2))
-    d = 2 * _C
-    src = 0
+def _step1(f, a, b, m, out, o):  # pragma: no cover - compiled
+    """The first 2 x 2 step of the frame rows at flat offsets ``a`` and ``b`` of ``f``:
+    ``out[o+i] = (f[a+i] + f[b+i] + f[a+i+3] + f[b+i+3] + 2) >> 2`` for i < m (uint8; the sums need 10
+    bits, so LLVM runs them in 16-bit lanes). Offsets are uint64: no negative-index checks."""
+    c = _U(_C)
+    for i in range(m):
+        out[o + i] = np.uint8((np.int32(f[a + i]) + np.int32(f[b + i]) + np.int32(f[a + i + c])
+                               + np.int32(f[b + i + c]) + 2) >> 2)
+
+
+@_jit
+def _step(v, a, b, d, m, o):  # pragma: no cover - compiled
+    """A further 2 x 2 step of the rows at flat offsets ``a`` and ``b`` of ``v``, horizontal
+    neighbours ``d`` apart: ``v[o+i] = (v[a+i] + v[a+i+d] + v[b+i] + v[b+i+d] + 2) >> 2`` for i < m."""
+    for i in range(m):
+        v[o + i] = np.uint8((np.int32(v[a + i]) + np.int32(v[a + i + d]) + np.int32(v[b + i])
+                             + np.int32(v[b + i + d]) + 2) >> 2)
+
+
+@_jit
+def _pick(src, src32, s, step, dst, dst32, o, w, wide):  # pragma: no cover - compiled
+    """Pixel x < w of the row at flat offset ``o`` of ``dst`` = the 3 values at ``src[s + step*x:]``.
+    With ``wide`` (``src32`` / ``dst32`` the same buffers as 32-bit words, ``s``, ``step`` and ``o``
+    multiples of 4) four pixels at a time: four 32-bit loads, three 32-bit stores (little-endian);
+    the rest one value at a time."""
+    g = w // _U(4) if wide else _U(0)
+    s4, st4, o4 = s // _U(4), step // _U(4), o // _U(4)
+    for q in range(g):
+        j = s4 + _U(4) * q * st4
+        p0 = src32[j]
+        p1 = src32[j + st4]
+        p2 = src32[j + _U(2) * st4]
+        p3 = src32[j + _U(3) * st4]
+        k = o4 + _U(3) * q
+        dst32[k] = (p0 & np.uint32(0xFFFFFF)) | (p1 << np.uint32(24))
+        dst32[k + _U(1)] = ((p1 >> np.uint32(8)) & np.uint32(0xFFFF)) | (p2 << np.uint32(16))
+        dst32[k + _U(2)] = ((p2 >> np.uint32(16)) & np.uint32(0xFF)) | (p3 << np.uint32(8))
+    c = _U(_C)
+    for x in range(_U(4) * g, w):
+        j = s + step * x
+        dst[o + c * x] = src[j]
+        dst[o + c * x + _U(1)] = src[j + _U(1)]
+        dst[o + c * x + _U(2)] = src[j + _U(2)]
+
+
+@_jit
+def _words(a):  # pragma: no cover - compiled
+    """``a`` (C-contiguous uint8) flat and as 32-bit words (empty where its size or address is not a
+    multiple of 4, or the host is big-endian: then :func:`_pick` goes one value at a time)."""
+    flat = a.reshape(a.size)
+    if _LITTLE and a.size % 4 == 0 and a.ctypes.data % 4 == 0:
+        return flat, flat.view(np.uint32)
+    return flat, np.empty(0, np.uint32)
+
+
+@_jit
+def _reduce_rows(f, n, y, k, v):  # pragma: no cover - compiled
+    """Rows k*y .. k*y+k-1 of the frame (flat ``f``, rows of ``n`` values) reduced (log2(k) 2 x 2
+    steps) into rows of the flat ``v`` (k rows of n uint8); returns the flat offset of the row
+    where the value of output pixel x, channel ch ends, at 3*k*x + ch."""
+    half = k // _U(2)
+    m = n - _U(_C)
+    for p in range(half):
+        r = (k * y + _U(2) * p) * n
+        _step1(f, r, r + n, m, v, p * n)
+    d = _U(2 * _C)
+    src = _U(0)
     rows = half
-    while rows > 1:  # further steps: 2 x 2 of the previous step's values, d apart, into new rows
+    while rows > _U(1):
         dst = src + rows
-        rows //= 2
+        rows //= _U(2)
+        m -= d
         for q in range(rows):
-            a = v[src + 2 * q]
-            b = v[src + 2 * q + 1]
-            a_d = a[d:]  # views d ahead: indices that cannot be negative, so no wrap-around check
-            b_d = b[d:]
-            o = v[dst + q]
-            for i in range(n - d):
-                o[i] = np.uint16((np.uint32(a[i]) + np.uint32(a_d[i]) + np.uint32(b[i]) + np.uint32(b_d[i])
-                                  + np.uint32(2)) >> np.uint32(2))
+            _step(v, (src + _U(2) * q) * n, (src + _U(2) * q + _U(1)) * n, d, m, (dst + q) * n)
         src = dst
-        d *= 2
-    return src
+        d *= _U(2)
+    return src * n
 
 
 @compiled("contact gate kernels", inline="always")
 def _g(left, mid, right):  # pragma: no cover - compiled
     """One blurred value from the vertical sums of three neighbours: (l + 2 m + r + 8) >> 4."""
-    return np.uint8((np.uint32(left) + np.uint32(2) * np.uint32(mid) + np.uint32(right) + np.uint32(8)) >> np.uint32(4))
+    return np.uint8((np.int32(left) + 2 * np.int32(mid) + np.int32(right) + 8) >> 4)
 
 
 @_jit
-def _blur_row(small, y, t, out):
-    """Row y of the 3 x 3 Gaussian blur of ``small`` (h x (w*3), h and w >= 2) into ``out``."""
-    h, n = small.shape
-    up = small[y - 1 if y > 0 else 1]
-    mid = small[y]
-    dn = small[y + 1 if y < h - 1 else h - 2]
-    for i in range(n):
-        t[i] = np.uint16(np.uint32(up[i]) + np.uint32(2) * np.uint32(mid[i]) + np.uint32(dn[i]))
-    t_1 = t[_C:]  # views 3 and 6 ahead (indices that cannot be negative: the loop vectorises)
-    t_2 = t[2 * _C:]
-    o_1 = out[_C:]
-    for i in range(n - 2 * _C):
-        o_1[i] = _g(t[i], t_1[i], t_2[i])
-    for ch in range(_C):  # reflect-101 edges: the neighbour outside is the one inside
-        out[ch] = _g(t[ch + _C], t[ch], t[ch + _C])
-        j = n - _C + ch
-        out[j] = _g(t[j - _C], t[j], t[j - _C])
+def _blur(x, n, h, t, out):  # pragma: no cover - compiled
+    """The 3 x 3 Gaussian blur of ``x`` (flat, h rows of n = w*3 uint8, h and w >= 2) into ``out``
+    (flat), reflect-101 edges. Whole-image loops (long ones vectorise best): the vertical sums
+    ``up + 2 mid + down`` into ``t`` (h*n uint16), then the horizontal pass over all rows at once;
+    the values it mixes across a row's ends are then written again as the row's edges."""
+    size = n * _U(h)
+    c = _U(_C)
+    c2 = _U(2 * _C)
+    last = size - n
+    for i in range(n):  # first and last rows: the reflected neighbour is the one inside
+        t[i] = np.uint16(2 * np.int32(x[n + i]) + 2 * np.int32(x[i]))
+        t[last + i] = np.uint16(2 * np.int32(x[last - n + i]) + 2 * np.int32(x[last + i]))
+    for j in range(n, last):
+        t[j] = np.uint16(np.int32(x[j - n]) + 2 * np.int32(x[j]) + np.int32(x[j + n]))
+    for j in range(size - c2):
+        out[j + c] = _g(t[j], t[j + c], t[j + c2])
+    for y in range(_U(h)):
+        o = y * n
+        for ch in range(c):
+            out[o + ch] = _g(t[o + ch + c], t[o + ch], t[o + ch + c])
+            e = o + n - c + ch
+            out[e] = _g(t[e - c], t[e], t[e - c])
 
 
 @_jit
-def reduce_blur(frame, k, small, work, v, t):  # pragma: no cover - compiled
-    """``frame`` (H x W*3 uint8) reduced by the power of two ``k`` >= 2 into ``small`` (H/k x W/k*3)
-    and, when ``work`` has rows (h, w >= 2), its 3 x 3 Gaussian blur into ``work``.
-    Scratch: ``v`` (k x W*3 uint16), ``t`` (W/k*3 uint16)."""
-    h, m = small.shape
-    step = _C * k
-    for y in range(h):
-        last = v[_reduce_rows(frame, y, k, v)]
-        o = small[y]
-        for x in range(m // _C):
-            j = step * x
-            o[_C * x] = last[j]
-            o[_C * x + 1] = last[j + 1]
-            o[_C * x + 2] = last[j + 2]
+def _noise(x, n, h, t, blurred, acc, sums):  # pragma: no cover - compiled
+    """Per-channel sums into ``sums`` (3 int64) of |x - blur(x)| (``x`` flat, h rows of n = w*3 uint8,
+    h and w >= 2). Scratch: ``t`` (h*n uint16), ``blurred`` (h*n uint8), ``acc`` (48 uint32: the
+    sums per value of 16 pixels, a block a vector loop takes whole)."""
+    _blur(x, n, h, t, blurred)
+    size = n * _U(h)
+    for j in range(size):
+        blurred[j] = np.uint8(abs(np.int32(x[j]) - np.int32(blurred[j])))
+    s0 = s1 = s2 = np.uint64(0)
+    for j in range(size // _U(_C)):
+        s0 += np.uint64(blurred[_U(_C) * j])
+        s1 += np.uint64(blurred[_U(_C) * j + _U(1)])
+        s2 += np.uint64(blurred[_U(_C) * j + _U(2)])
+    sums[0], sums[1], sums[2] = s0, s1, s2
+
+
+@_jit
+def reduce_blur(frame, k, small, work, sub, v, t, blurred, acc, sums):  # pragma: no cover - compiled
+    """``frame`` (H x W*3 uint8) reduced by the power of two ``k`` >= 2 into ``small`` (H/k x W/k*3);
+    when ``work`` has rows (h, w >= 2) its 3 x 3 Gaussian blur into ``work``; when ``sub`` has rows
+    (k > 2, h, w >= 2) the nearest subsample (pixel (k y, k x)) into ``sub`` and the noise sums of
+    :func:`noise_sums` into ``sums``, all in one call. Scratch: ``v`` (k x W*3 uint8), ``t`` (H/k*W/k*3
+    uint16), ``blurred`` (H/k*W/k*3 uint8), ``acc`` (48 uint32)."""
+    h, mw = small.shape
+    n = _U(frame.shape[1])
+    w = _U(mw // _C)
+    ku = _U(k)
+    step = _U(_C) * ku
+    f, f32 = _words(frame)
+    vf, v32 = _words(v)
+    sf, s32 = _words(small)
+    noise = sub.shape[0] > 0
+    bf, b32 = _words(sub)
+    wide = step % _U(4) == _U(0) and n % _U(4) == _U(0) and _U(mw) % _U(4) == _U(0)
+    for y in range(_U(h)):
+        last = _reduce_rows(f, n, y, ku, vf)
+        _pick(vf, v32, last, step, sf, s32, y * _U(mw), w, wide and v32.size > 0 and s32.size > 0)
+        if noise:
+            _pick(f, f32, ku * y * n, step, bf, b32, y * _U(mw), w, wide and f32.size > 0 and b32.size > 0)
     if work.shape[0] > 0:
-        for y in range(h):
-            _blur_row(small, y, t, work[y])
+        _blur(sf, _U(mw), h, t, work.reshape(work.size))
+    if noise:
+        _noise(bf, _U(mw), h, t, blurred, acc, sums)
 
 
 @_jit
-def noise_sums(frame, k, sub, t, b, acc, sums):  # pragma: no cover - compiled
+def noise_sums(frame, k, sub, t, blurred, acc, sums):  # pragma: no cover - compiled
     """Per-channel sums into ``sums`` (3 int64) of |sub - blur(sub)|, ``sub`` the nearest subsample of
     ``frame`` (pixel (k y, k x), into ``sub``: h x w*3 uint8, h and w >= 2), blur the 3 x 3 Gaussian.
-    Scratch: ``t``, ``b`` (w*3 uint16), ``acc`` (w*3 uint32)."""
-    h, n = sub.shape
-    w = n // _C
-    step = _C * k
-    for y in range(h):
-        r = frame[k * y]
-        s = sub[y]
-        for x in range(w):
-            j = step * x
-            s[_C * x] = r[j]
-            s[_C * x + 1] = r[j + 1]
-            s[_C * x + 2] = r[j + 2]
-    for i in range(n):
-        acc[i] = 0
-    for y in range(h):
-        _blur_row(sub, y, t, b)
-        s = sub[y]
-        for i in range(n):
-            a = np.int32(s[i]) - np.int32(b[i])
-            acc[i] += np.uint32(a if a >= 0 else -a)
-    s0 = s1 = s2 = 0
-    for x in range(w):
-        s0 += acc[_C * x]
-        s1 += acc[_C * x + 1]
-        s2 += acc[_C * x + 2]
-    sums[0], sums[1], sums[2] = s0, s1, s2
+    Scratch: ``t`` (h*w*3 uint16), ``blurred`` (h*w*3 uint8), ``acc`` (48 uint32)."""
+    h, mw = sub.shape
+    n = _U(frame.shape[1])
+    step = _U(_C * k)
+    f, f32 = _words(frame)
+    bf, b32 = _words(sub)
+    wide = step % _U(4) == _U(0) and n % _U(4) == _U(0) and _U(mw) % _U(4) == _U(0) and f32.size > 0 \
+        and b32.size > 0
+    for y in range(_U(h)):
+        _pick(f, f32, _U(k) * y * n, step, bf, b32, y * _U(mw), _U(mw // _C), wide)
+    _noise(bf, _U(mw), h, t, blurred, acc, sums)
 
 
 @_jit
@@ -180,26 +248,26 @@ def changed(bg, model, work, ad, mask, ub, gt, ot):  # pragma: no cover - compil
 @_jit
 def blur3(small, t, work):  # pragma: no cover - compiled
     """The 3 x 3 Gaussian blur of ``small`` (h x w*3 uint8, h and w >= 2) into ``work``; scratch ``t``
-    (w*3 uint16)."""
-    for y in range(small.shape[0]):
-        _blur_row(small, y, t, work[y])
+    (h*w*3 uint16)."""
+    h, mw = small.shape
+    _blur(small.reshape(small.size), _U(mw), h, t, work.reshape(work.size))
 
 
 def warm() -> None:
     """Load every kernel (compile it on the first run of an environment, else from numba's cache)
     for the argument types the gate passes, writable and read-only frames, so that no frame
     waits for it."""
-    frame = np.zeros((4, 12), np.uint8)
-    small, work = np.zeros((2, 6), np.uint8), np.zeros((2, 6), np.uint8)
-    v, t = np.zeros((2, 12), np.uint16), np.zeros(6, np.uint16)
-    acc, sums = np.zeros(6, np.uint32), np.zeros(3, np.int64)
+    frame = np.zeros((8, 24), np.uint8)
+    small, work, sub = (np.zeros((2, 6), np.uint8) for _ in range(3))
+    v, t, blurred = np.zeros((4, 24), np.uint8), np.zeros(12, np.uint16), np.zeros(12, np.uint8)
+    acc, sums = np.zeros(48, np.uint32), np.zeros(3, np.int64)
     model = np.zeros((3, 4), np.float32)
     read_only = frame.copy()
     read_only.setflags(write=False)  # a read-only frame is another compiled form
     for f in (frame, read_only):
-        reduce_blur(f, 2, small, work, v, t)
-        reduce_blur(f, 2, small, work[:0], v, t)
-        noise_sums(f, 2, small, t, t.copy(), acc, sums)
+        reduce_blur(f, 4, small, work, sub, v, t, blurred, acc, sums)
+        reduce_blur(f, 4, small, work[:0], sub[:0], v, t, blurred, acc, sums)
+        noise_sums(f, 4, sub, t, blurred, acc, sums)
     blur3(small, t, work)
     changed(np.zeros((2, 6), np.float32), model, work, small, np.zeros((2, 2), np.uint8), 10, np.zeros(6),
             np.zeros(6))

@@ -38,8 +38,8 @@ def changed_cv(work: np.ndarray, bg: np.ndarray, model: np.ndarray, threshold: f
 class OracleFrameWork(FrameWork):
     """:class:`FrameWork` with every step done by the OpenCV calls (the gate before the kernels)."""
 
-    def reduce(self, frame: np.ndarray, blur: bool = False) -> None:
-        self.reduce_without_kernels(frame)
+    def reduce(self, frame: np.ndarray, blur: bool = False, noise: bool = False) -> None:
+        self.reduce_without_kernels(frame)  # noise: measured by noise() itself
         if blur:
             self.blur_small()
 

@@ -54,7 +54,7 @@ def test_reduction_and_blur_equal_opencv(k, h, w, seed, style):
 def test_blur_equals_opencv_gaussian_3x3_with_its_reflect_101_edges(h, w, seed, style):
     img = _image(seed, (h, w, 3), style)
     out = np.empty_like(img)
-    K.blur3(img.reshape(h, w * 3), np.empty(w * 3, np.uint16), out.reshape(h, w * 3))
+    K.blur3(img.reshape(h, w * 3), np.empty(h * w * 3, np.uint16), out.reshape(h, w * 3))
     assert np.array_equal(out, cv2.GaussianBlur(img, (3, 3), 0))
 
 
@@ -107,6 +107,26 @@ def test_kernels_equal_opencv_on_real_frames(k):
         assert np.array_equal(fw.small, ref) and np.array_equal(fw.work, blur_cv(ref))
         if k > 2:
             assert fw.noise(frame) == noise_cv(frame, k)
+
+
+@pytest.mark.parametrize("offset", [0, 1, 2, 3])
+def test_the_fused_reduction_equals_opencv_at_any_frame_address(offset):
+    """The kernel copies four pixels per three 32-bit words only where the frame's and the buffers'
+    addresses allow; a frame that starts at any byte (a view into a larger buffer) gives the same
+    reduced image, blur and noise level as OpenCV, with the noise measured in the same call."""
+    rng = np.random.default_rng(5)  # a smooth DIGIT-sized image with pixel noise
+    frame0 = np.clip(cv2.resize(rng.integers(0, 256, (15, 20, 3), dtype=np.uint8), (320, 240))
+                     + rng.normal(0, 4, (240, 320, 3)), 0, 255).astype(np.uint8)
+    for k in (4, 8):
+        raw = np.zeros(frame0.nbytes + 8, np.uint8)
+        frame = raw[offset:offset + frame0.nbytes].reshape(frame0.shape)
+        frame[...] = frame0
+        fw = FrameWork(frame.shape, k, 3, 10.0)  # type: ignore[arg-type]
+        fw.reduce(frame, blur=True, noise=True)
+        ref = reduce_cv(frame0, k)
+        assert np.array_equal(fw.small, ref) and np.array_equal(fw.work, blur_cv(ref))
+        assert fw.noise(frame) == noise_cv(frame0, k)  # the level measured by reduce, taken once
+        assert fw.noise(frame) == noise_cv(frame0, k)  # measured again
 
 
 # -- the whole gate ---------------------------------------------------------------------------

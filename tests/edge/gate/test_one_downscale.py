@@ -155,9 +155,9 @@ def test_one_downscale_per_frame_shared_by_gate_and_model(monkeypatch, sensors):
         calls["n"] += 1
         return real(self, frame, out)
 
-    def counted_work(self, frame, blur=False):  # the gate's reduction (its kernel does not call FrameReducer)
+    def counted_work(self, frame, blur=False, noise=False):  # the gate's reduction (no FrameReducer call)
         calls["n"] += 1
-        return real_work(self, frame, blur)
+        return real_work(self, frame, blur, noise)
 
     monkeypatch.setattr(FrameReducer, "__call__", counted)
     monkeypatch.setattr(FrameWork, "reduce", counted_work)
