@@ -3,6 +3,8 @@ saturation and deformation (for edge/gate/contact_gate.py's ``ContactGate``)."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import cv2
 import numpy as np
 
@@ -16,13 +18,16 @@ class BlobFinder:
     |frame - model| per channel), both buffers of the gate reused every frame.
 
     ``finder(changed_px)`` -> (area in working pixels, gel saturation seen, deformation in grey
-    levels); ``changed_px`` is the count of 255 pixels in ``mask`` (0: nothing to look at)."""
+    levels); ``changed_px`` is the count of 255 pixels in ``mask`` (0: nothing to look at).
+    ``stats`` gives the filled mask's (area, deformation) (edge/gate/frame_work.py's
+    ``FrameWork.contact_stats``: one compiled pass over ``mask`` and ``ad``)."""
 
-    def __init__(self, options: GateOptions, mask: np.ndarray, ad: np.ndarray) -> None:
+    def __init__(self, options: GateOptions, mask: np.ndarray, ad: np.ndarray,
+                 stats: Callable[[], tuple[int, float]]) -> None:
         o = options
         h, w = mask.shape
         self.options = o
-        self._mask, self._ad = mask, ad
+        self._mask, self._ad, self._stats = mask, ad, stats
         self._zero = np.zeros(3, np.float64)
         self._sat = np.full(3, float(o.saturation_threshold), np.float64)
         self._strong = np.empty((h, w), np.uint8)
@@ -52,10 +57,10 @@ class BlobFinder:
         if o.convex_hull:
             keep = [cv2.convexHull(c) for c in keep]
         cv2.drawContours(mask, keep, -1, 255, thickness=cv2.FILLED)
-        area_small = cv2.countNonZero(mask)
+        area_small, deformation = self._stats()
         limit = o.saturation_area_frac * self._work_area
         saturation_seen = self._strong_area_reaches(limit) if area_small >= limit else False  # else it cannot be
-        return area_small, saturation_seen, max(cv2.mean(self._ad, mask=mask)[:3])
+        return area_small, saturation_seen, deformation
 
     def _strong_area_reaches(self, limit: float) -> bool:
         """True when the pixels with a channel of ``ad`` above ``saturation_threshold`` cover

@@ -284,13 +284,10 @@ class ContactGate:
 
     # -- trust ----------------------------------------------------------------------------
     def _residual(self) -> int:
-        """|thumbnail - (gain x background + offset)| per cell and channel into ``_tres``, the
-        cells within ``fit_tolerance`` on every channel into ``_inl``; returns their count."""
+        """The model of the thumbnail (gain x background + offset) into ``_tmodel``, the cells within
+        ``fit_tolerance`` of it on every channel into ``_inl``; returns their count."""
         assert self._bg_thumb is not None
-        cv2.transform(self._bg_thumb, self._M, dst=self._tmodel)
-        cv2.absdiff(self._thumb_f, self._tmodel, dst=self._tres)
-        cv2.inRange(self._tres, self._zero, self._tol, dst=self._inl)
-        return cv2.countNonZero(self._inl)
+        return self._fw.residual(self._bg_thumb, self._thumb_f, self._M, self._tmodel, self._inl, self._tol)
 
     def _fit(self, final: bool = True) -> None:
         """Per-channel gain/offset (frame = gain x background + offset), least squares over
@@ -448,19 +445,17 @@ class ContactGate:
         self._exact = fw.exact
         self._thumb_f = np.empty((th, tw, 3), np.float32)
         self._tmodel = np.empty((th, tw, 3), np.float32)
-        self._tres = np.empty((th, tw, 3), np.float32)
         self._tr = np.empty((th, tw, 3), np.float32)
         self._txy = np.empty((th, tw, 3), np.float32)
         self._inl = np.full((th, tw), 255, np.uint8)
         self._tcmp = np.empty((th, tw, 3), np.uint8)  # the occlusion check's buffers
         self._tdark = np.empty((th, tw), np.uint8)
-        self._tol = np.full(3, float(o.fit_tolerance), np.float64)
+        self._tol = np.float32(o.fit_tolerance)  # inRange's bound on a float32 image: the float32 nearest
         self._mx = np.empty((3, 1), np.float64)  # meanStdDev outputs, reused
         self._sx = np.empty((3, 1), np.float64)
         self._y = self._thumb_f.reshape(-1, 3)  # a view: the thumbnail's cells x B, G, R
         self._fit_frac = 1.0
-        self._zero = np.zeros(3, np.float64)
-        self._blob_finder = BlobFinder(o, self._mask, self._ad)
+        self._blob_finder = BlobFinder(o, self._mask, self._ad, fw.contact_stats)
         self._full_mask = self._mask if s == 1 else np.zeros((h, w), np.uint8)
         self._full_area = h * w
 

@@ -189,6 +189,24 @@ class FrameWork:
         s0, s1, s2 = self._sums.tolist()
         return max(s0 * inv, s1 * inv, s2 * inv)
 
+    def residual(self, bg_thumb: np.ndarray, thumb: np.ndarray, model: np.ndarray, tmodel: np.ndarray,
+                 inl: np.ndarray, tol: np.float32) -> int:
+        """The thumbnail's fit: ``tmodel`` = gain x ``bg_thumb`` + offset (``model`` as in :meth:`changed`),
+        ``inl`` 255 where |``thumb`` - ``tmodel``| <= ``tol`` on every channel, else 0; returns the count
+        of 255 cells. Thumbnails: rows x cols x 3 float32; ``inl`` rows x cols uint8."""
+        return int(self._k.residual(bg_thumb, model, thumb, tmodel, inl, tol))
+
+    def contact_stats(self) -> tuple[int, float]:
+        """(area: the nonzero pixels of ``mask``, deformation: the largest per-channel mean of ``ad``
+        over them, grey levels; 0.0 for an empty mask), as ``cv2.countNonZero`` and ``cv2.mean``
+        with the mask give them."""
+        n = int(self._k.masked_sums(self.mask, self.ad, self._sums))
+        if n == 0:
+            return 0, 0.0
+        inv = 1.0 / n  # cv2.mean: the integer sum times 1 / count
+        s0, s1, s2 = self._sums.tolist()
+        return n, max(s0 * inv, s1 * inv, s2 * inv)
+
     def changed(self, bg: np.ndarray, model: np.ndarray) -> int:
         """|work - u8(gain x bg + offset)| per channel into ``ad`` and the changed mask (255 where a
         channel of it exceeds the threshold) into ``mask``; returns the changed pixel count.

@@ -19,6 +19,10 @@ calls as the oracle):
   rounded to float32 once, as ``cv2.transform`` of a float32 image by a diagonal matrix),
   ``convertScaleAbs`` (|x| rounded half to even, saturated), ``absdiff`` and the mask 255 where
   any channel exceeds the integer bound.
+- :func:`residual`: the thumbnail's photometric fit (``cv2.transform`` by the diagonal model,
+  ``absdiff``, ``inRange`` within the tolerance, ``countNonZero``).
+- :func:`masked_sums`: a contact mask's area and the sums of |frame - model| over it
+  (``countNonZero`` and ``cv2.mean`` with the mask, whose sums are integers).
 """
 
 from __future__ import annotations
@@ -30,6 +34,7 @@ import numpy as np
 from ..compiled import compiled
 
 _jit = compiled("contact gate kernels")
+_inline = compiled("contact gate kernels", inline="always")
 
 
 #: channels per pixel (BGR): a compile-time constant, so the horizontal neighbours' distance is known
@@ -40,7 +45,7 @@ _LITTLE = sys.byteorder == "little"
 _U = np.uint64
 
 
-@_jit
+@_inline
 def _step1(f, a, b, m, out, o):  # pragma: no cover - compiled
     """The first 2 x 2 step of the frame rows at flat offsets ``a`` and ``b`` of ``f``:
     ``out[o+i] = (f[a+i] + f[b+i] + f[a+i+3] + f[b+i+3] + 2) >> 2`` for i < m (uint8; the sums need 10
@@ -51,7 +56,7 @@ def _step1(f, a, b, m, out, o):  # pragma: no cover - compiled
                                + np.int32(f[b + i + c]) + 2) >> 2)
 
 
-@_jit
+@_inline
 def _step(v, a, b, d, m, o):  # pragma: no cover - compiled
     """A further 2 x 2 step of the rows at flat offsets ``a`` and ``b`` of ``v``, horizontal
     neighbours ``d`` apart: ``v[o+i] = (v[a+i] + v[a+i+d] + v[b+i] + v[b+i+d] + 2) >> 2`` for i < m."""
@@ -60,7 +65,7 @@ def _step(v, a, b, d, m, o):  # pragma: no cover - compiled
                              + np.int32(v[b + i + d]) + 2) >> 2)
 
 
-@_jit
+@_inline
 def _pick(src, src32, s, step, dst, dst32, o, w, wide):  # pragma: no cover - compiled
     """Pixel x < w of the row at flat offset ``o`` of ``dst`` = the 3 values at ``src[s + step*x:]``.
     With ``wide`` (``src32`` / ``dst32`` the same buffers as 32-bit words, ``s``, ``step`` and ``o``
@@ -96,7 +101,7 @@ def _words(a):  # pragma: no cover - compiled
     return flat, np.empty(0, np.uint32)
 
 
-@_jit
+@_inline
 def _reduce_rows(f, n, y, k, v):  # pragma: no cover - compiled
     """Rows k*y .. k*y+k-1 of the frame (flat ``f``, rows of ``n`` values) reduced (log2(k) 2 x 2
     steps) into rows of the flat ``v`` (k rows of n uint8); returns the flat offset of the row
@@ -246,6 +251,52 @@ def changed(bg, model, work, ad, mask, ub, gt, ot):  # pragma: no cover - compil
 
 
 @_jit
+def residual(bg, model, thumb, tmodel, inl, tol):  # pragma: no cover - compiled
+    """The thumbnail's fit to the model: ``tmodel`` = gain x ``bg`` + offset per channel (``model``
+    the 3 x 4 float32 matrix, diagonal and last column read; the product and sum in float64 rounded
+    to float32 once, as ``cv2.transform`` by a diagonal matrix), ``inl`` (rows x cols uint8) 255 where
+    |thumb - tmodel| (float32, ``cv2.absdiff``) lies within [0, ``tol``] on every channel (``cv2.inRange``
+    with the bounds as float32: NaN is out), else 0; returns the count of 255 cells. ``bg``,
+    ``thumb``, ``tmodel``: rows x cols x 3 float32."""
+    b = bg.reshape(bg.size)
+    y = thumb.reshape(thumb.size)
+    m = tmodel.reshape(tmodel.size)
+    out = inl.reshape(inl.size)
+    zero = np.float32(0.0)
+    count = 0
+    for x in range(out.shape[0]):
+        ok = True
+        for ch in range(_C):
+            j = _C * x + ch
+            v = np.float32(np.float64(b[j]) * np.float64(model[ch, ch]) + np.float64(model[ch, 3]))
+            m[j] = v
+            d = abs(y[j] - v)
+            ok = ok and zero <= d and d <= tol
+        out[x] = np.uint8(255) if ok else np.uint8(0)
+        count += 1 if ok else 0
+    return count
+
+
+@_jit
+def masked_sums(mask, ad, sums):  # pragma: no cover - compiled
+    """The count of nonzero pixels of ``mask`` (h x w uint8) and into ``sums`` (3 int64) the
+    per-channel sums of ``ad`` (h x w x 3 uint8) over them: ``cv2.countNonZero`` and the sums
+    ``cv2.mean(ad, mask)`` divides by that count."""
+    m = mask.reshape(mask.size)
+    a = ad.reshape(ad.size)
+    count = 0
+    s0 = s1 = s2 = 0
+    for p in range(m.shape[0]):
+        if m[p] != 0:
+            count += 1
+            s0 += a[_C * p]
+            s1 += a[_C * p + 1]
+            s2 += a[_C * p + 2]
+    sums[0], sums[1], sums[2] = s0, s1, s2
+    return count
+
+
+@_jit
 def blur3(small, t, work):  # pragma: no cover - compiled
     """The 3 x 3 Gaussian blur of ``small`` (h x w*3 uint8, h and w >= 2) into ``work``; scratch ``t``
     (h*w*3 uint16)."""
@@ -271,3 +322,6 @@ def warm() -> None:
     blur3(small, t, work)
     changed(np.zeros((2, 6), np.float32), model, work, small, np.zeros((2, 2), np.uint8), 10, np.zeros(6),
             np.zeros(6))
+    thumb = np.zeros((2, 2, 3), np.float32)
+    residual(thumb, model, thumb, thumb.copy(), np.zeros((2, 2), np.uint8), np.float32(8.0))
+    masked_sums(np.zeros((2, 2), np.uint8), np.zeros((2, 2, 3), np.uint8), sums)

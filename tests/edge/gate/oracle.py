@@ -35,6 +35,15 @@ def changed_cv(work: np.ndarray, bg: np.ndarray, model: np.ndarray, threshold: f
     return ad, mask
 
 
+def residual_cv(bg_thumb: np.ndarray, thumb: np.ndarray, model: np.ndarray, tol: float
+                ) -> tuple[np.ndarray, np.ndarray, int]:
+    """(transform(bg_thumb, model), inRange(|thumb - it|, 0, tol) on every channel, its count): the
+    gate's thumbnail fit before the kernel."""
+    tmodel = cv2.transform(bg_thumb, model)
+    inl = cv2.inRange(cv2.absdiff(thumb, tmodel), np.zeros(3), np.full(3, float(tol)))
+    return tmodel, inl, cv2.countNonZero(inl)
+
+
 class OracleFrameWork(FrameWork):
     """:class:`FrameWork` with every step done by the OpenCV calls (the gate before the kernels)."""
 
@@ -59,6 +68,16 @@ class OracleFrameWork(FrameWork):
             sb = cv2.GaussianBlur(self.sub, (b, b), 0) if b > 1 else self.sub.copy()
             d = cv2.absdiff(self.sub, sb)
         return float(max(cv2.mean(d)[:3]))
+
+    def residual(self, bg_thumb: np.ndarray, thumb: np.ndarray, model: np.ndarray, tmodel: np.ndarray,
+                 inl: np.ndarray, tol: np.float32) -> int:
+        m, i, n = residual_cv(bg_thumb, thumb, model, float(tol))
+        np.copyto(tmodel, m)
+        np.copyto(inl, i)
+        return n
+
+    def contact_stats(self) -> tuple[int, float]:
+        return cv2.countNonZero(self.mask), float(max(cv2.mean(self.ad, mask=self.mask)[:3]))
 
     def changed(self, bg: np.ndarray, model: np.ndarray) -> int:
         ad, mask = changed_cv(self.work, bg, model, self.threshold)

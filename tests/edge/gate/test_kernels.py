@@ -14,7 +14,7 @@ from tactile_force.edge.gate import kernels as K
 from tactile_force.edge.gate.frame_work import FrameWork
 
 from tests.conftest import shared_data
-from tests.edge.gate.oracle import OracleGate, blur_cv, changed_cv, noise_cv, reduce_cv
+from tests.edge.gate.oracle import OracleGate, blur_cv, changed_cv, noise_cv, reduce_cv, residual_cv
 
 _SETTINGS = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
@@ -87,6 +87,45 @@ def test_changed_mask_and_difference_equal_opencv(h, w, seed, threshold, identit
     ad, mask = changed_cv(work, bg, model, threshold)
     assert np.array_equal(fw.ad, ad) and np.array_equal(fw.mask, mask)
     assert n == cv2.countNonZero(mask)
+
+
+@_SETTINGS
+@given(rows=st.integers(2, 17), cols=st.integers(2, 23), seed=st.integers(0, 2**31),
+       tol=st.sampled_from([8.0, 8.3, 0.5, 2.7, 40.0, 1e-7]), near=st.booleans())
+def test_thumbnail_fit_equals_opencv(rows, cols, seed, tol, near):
+    """The fit's model, inlier mask and count, with thumbnails whose residual lands next to the
+    tolerance (``near``: the frame is the model +- the tolerance +- a float32 step)."""
+    rng = np.random.default_rng(seed)
+    bg = (rng.random((rows, cols, 3)) * 255).astype(np.float32)
+    model = np.zeros((3, 4), np.float32)
+    model[[0, 1, 2], [0, 1, 2]] = rng.random(3) * 1.6 + 0.2
+    model[:, 3] = rng.random(3) * 40 - 20
+    ref_model, ref_inl, ref_n = residual_cv(bg, bg, model, tol)
+    if near:
+        step = rng.choice([-1, 0, 1], (rows, cols, 3)) * np.spacing(np.float32(tol))
+        sign = rng.choice([-1.0, 1.0], (rows, cols, 3))
+        thumb = (ref_model + sign * (np.float32(tol) + step)).astype(np.float32)
+    else:
+        thumb = (bg * rng.random((rows, cols, 3)) * 2 + rng.normal(0, 5, (rows, cols, 3))).astype(np.float32)
+    ref_model, ref_inl, ref_n = residual_cv(bg, thumb, model, tol)
+    tmodel, inl = np.empty_like(thumb), np.empty((rows, cols), np.uint8)
+    fw = FrameWork((4 * rows, 4 * cols, 3), 4, 3, 10.0)
+    n = fw.residual(bg, thumb, model, tmodel, inl, np.float32(tol))
+    assert n == ref_n and np.array_equal(inl, ref_inl)
+    assert np.array_equal(tmodel.view(np.uint32), ref_model.view(np.uint32))  # the same float32 bits
+
+
+@_SETTINGS
+@given(h=st.integers(1, 31), w=st.integers(1, 31), seed=st.integers(0, 2**31),
+       fill=st.sampled_from([0.0, 0.01, 0.5, 1.0]))
+def test_contact_area_and_deformation_equal_opencv(h, w, seed, fill):
+    rng = np.random.default_rng(seed)
+    fw = FrameWork((4 * h, 4 * w, 3), 4, 3, 10.0)
+    fw.mask[...] = np.where(rng.random((h, w)) < fill, rng.integers(1, 256, (h, w)), 0).astype(np.uint8)
+    fw.ad[...] = rng.integers(0, 256, (h, w, 3), dtype=np.uint8)
+    area, deformation = fw.contact_stats()
+    assert area == cv2.countNonZero(fw.mask)
+    assert deformation == max(cv2.mean(fw.ad, mask=fw.mask)[:3])  # exactly
 
 
 def _real_frames() -> list[np.ndarray]:
