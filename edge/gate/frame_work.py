@@ -112,6 +112,14 @@ class FrameWork:
         self._inv_n = 1.0 / (wh * ww)
         self._gt = np.empty(ww * 3, np.float64)  # the changed kernel's gain / offset per value of a row
         self._ot = np.empty(ww * 3, np.float64)
+        # The thumbnail by the kernel where it is ``work`` shrunk by an even integer factor f
+        # (INTER_LINEAR there is the mean of the 2 x 2 pixels around each cell's centre).
+        th, tw = self.thumb.shape[:2]
+        f = wh // th
+        self._f = f if f % 2 == 0 and th * f == wh and tw * f == ww else 0
+        self._thumb2 = self.thumb.reshape(th, tw * 3)
+        self._no_thumb = np.empty((0, tw * 3), np.uint8)
+        self._thumb_made = False  # the last reduce made the thumbnail of ``work``
 
     def reduce(self, frame: np.ndarray, blur: bool = False, noise: bool = False) -> None:
         """The frame's one downscale into ``small``; with ``blur`` also its blur into ``work``, with
@@ -119,13 +127,15 @@ class FrameWork:
         call where the kernels apply)."""
         s = self.downscale
         self._noise_of = None
+        self._thumb_made = False
         if self._v is not None:
             h, w = self.shape[:2]
             noise = noise and self._noise_kernel
-            self._k.reduce_blur(frame.reshape(h, w * 3), s, self._small2,
-                                self._work2 if blur and self._blur3 else self._none,
+            blur3 = blur and self._blur3
+            self._thumb_made = blur3 and self._f > 0
+            self._k.reduce_blur(frame.reshape(h, w * 3), s, self._small2, self._work2 if blur3 else self._none,
                                 self._sub2 if noise else self._none, self._v, self._t, self._sub_blur1, self._acc,
-                                self._sums)
+                                self._sums, self._f, self._thumb2 if self._thumb_made else self._no_thumb)
             if noise:
                 self._noise_of, self._noise_level = frame, self._level()
             if blur and not self._blur3:
@@ -149,6 +159,7 @@ class FrameWork:
 
     def blur_small(self) -> None:
         """``work`` = the blur of ``small``."""
+        self._thumb_made = False
         if self._blur3:
             self._k.blur3(self._small2, self._t, self._work2)
         else:
@@ -158,8 +169,11 @@ class FrameWork:
         _gaussian(self.small, self.work, self.blur)
 
     def thumbnail(self) -> np.ndarray:
-        """``thumb`` = ``work`` shrunk to the thumbnail (INTER_LINEAR)."""
+        """``thumb`` = ``work`` shrunk to the thumbnail (INTER_LINEAR; made by the reduction's kernel
+        call where the factor allows)."""
         t = self.thumb
+        if self._thumb_made:
+            return t
         cv2.resize(self.work, (t.shape[1], t.shape[0]), dst=t, interpolation=cv2.INTER_LINEAR)
         return t
 

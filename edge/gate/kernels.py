@@ -11,13 +11,15 @@ calls as the oracle):
   ``(a + b + c + d + 2) >> 2``, OpenCV ``INTER_AREA`` at exactly 1/2) and the 3 x 3 Gaussian blur of
   the result (``cv2.GaussianBlur(src, (3, 3), 0)``: weights 1-2-1 x 1-2-1, ``(sum + 8) >> 4``,
   ``BORDER_REFLECT_101``), and where asked the noise sums below, in one call; :func:`blur3` the blur alone.
+  The thumbnail (:func:`shrink`, ``cv2.resize`` INTER_LINEAR at an even factor) in the same call.
   The 2 x 2 steps run over whole rows and the output keeps one value in k (:func:`_pick`: four pixels
   per three 32-bit stores).
 - :func:`noise_sums`: the nearest subsample (``cv2.resize`` ``INTER_NEAREST`` at an integer factor:
   pixel (k y, k x)), its 3 x 3 blur, and the per-channel sums of |sub - blur|.
 - :func:`changed`: the model ``gain x background + offset`` (the product and sum in float64,
   rounded to float32 once, as ``cv2.transform`` of a float32 image by a diagonal matrix),
-  ``convertScaleAbs`` (|x| rounded half to even, saturated), ``absdiff`` and the mask 255 where
+  ``convertScaleAbs`` (|x| rounded half to even, saturated; NaN and |x| >= 2^31 give 0 as its int32
+  rounding does), ``absdiff`` and the mask 255 where
   any channel exceeds the integer bound.
 - :func:`residual`: the thumbnail's photometric fit (``cv2.transform`` by the diagonal model,
   ``absdiff``, ``inRange`` within the tolerance, ``countNonZero``).
@@ -174,9 +176,28 @@ def _noise(x, n, h, t, blurred, acc, sums):  # pragma: no cover - compiled
 
 
 @_jit
-def reduce_blur(frame, k, small, work, sub, v, t, blurred, acc, sums):  # pragma: no cover - compiled
+def shrink(work, f, thumb):  # pragma: no cover - compiled
+    """``thumb`` (h/f x w/f*3 uint8) = ``work`` (h x w*3) shrunk by the even integer ``f``, as
+    ``cv2.resize`` INTER_LINEAR does at that factor: each value the two-by-two mean of the pixels
+    around the cell's centre, (a + b + c + d + 2) >> 2."""
+    th, tn = thumb.shape
+    a = f // 2 - 1
+    for y in range(th):
+        r0 = work[f * y + a]
+        r1 = work[f * y + a + 1]
+        o = thumb[y]
+        for x in range(tn // _C):
+            j = _C * (f * x + a)
+            for ch in range(_C):
+                o[_C * x + ch] = np.uint8((np.int32(r0[j + ch]) + np.int32(r0[j + _C + ch]) + np.int32(r1[j + ch])
+                                           + np.int32(r1[j + _C + ch]) + 2) >> 2)
+
+
+@_jit
+def reduce_blur(frame, k, small, work, sub, v, t, blurred, acc, sums, tf, thumb):  # pragma: no cover - compiled
     """``frame`` (H x W*3 uint8) reduced by the power of two ``k`` >= 2 into ``small`` (H/k x W/k*3);
-    when ``work`` has rows (h, w >= 2) its 3 x 3 Gaussian blur into ``work``; when ``sub`` has rows
+    when ``work`` has rows (h, w >= 2) its 3 x 3 Gaussian blur into ``work`` and, when ``thumb`` has
+    rows, ``work`` shrunk by ``tf`` into it (:func:`shrink`); when ``sub`` has rows
     (k > 2, h, w >= 2) the nearest subsample (pixel (k y, k x)) into ``sub`` and the noise sums of
     :func:`noise_sums` into ``sums``, all in one call. Scratch: ``v`` (k x W*3 uint8), ``t`` (H/k*W/k*3
     uint16), ``blurred`` (H/k*W/k*3 uint8), ``acc`` (48 uint32)."""
@@ -198,6 +219,8 @@ def reduce_blur(frame, k, small, work, sub, v, t, blurred, acc, sums):  # pragma
             _pick(f, f32, ku * y * n, step, bf, b32, y * _U(mw), w, wide and f32.size > 0 and b32.size > 0)
     if work.shape[0] > 0:
         _blur(sf, _U(mw), h, t, work.reshape(work.size))
+        if thumb.shape[0] > 0:
+            shrink(work, tf, thumb)
     if noise:
         _noise(bf, _U(mw), h, t, blurred, acc, sums)
 
@@ -232,21 +255,24 @@ def changed(bg, model, work, ad, mask, ub, gt, ot):  # pragma: no cover - compil
         for ch in range(_C):
             gt[_C * x + ch] = np.float64(model[ch, ch])
             ot[_C * x + ch] = np.float64(model[ch, 3])
-    lim = np.uint32(ub)
-    count = 0
+    lim = np.int32(ub)
+    count = np.int32(0)
     for y in range(h):
         src = bg[y]
         wr = work[y]
         a = ad[y]
         mk = mask[y]
-        for i in range(n):
-            m = abs(np.float32(np.float64(src[i]) * gt[i] + ot[i]))
-            q = np.int32(np.minimum(np.rint(m), np.float32(255.0)))
-            a[i] = np.uint8(abs(np.int32(wr[i]) - q))
-        for x in range(w):
-            hit = max(np.uint32(a[_C * x]), np.uint32(a[_C * x + 1]), np.uint32(a[_C * x + 2])) > lim
-            mk[x] = np.uint8(255) if hit else np.uint8(0)
-            count += np.int64(hit)
+        for i in range(n):  # float32 lanes after the model: |x| rounded and saturated is a whole number
+            r = np.rint(abs(np.float32(np.float64(src[i]) * gt[i] + ot[i])))
+            q = np.float32(255.0) if r > np.float32(255.0) else r
+            # convertScaleAbs rounds to int32 first: NaN and |x| >= 2^31 give INT_MIN, saturated to 0
+            q = q if r < np.float32(2147483648.0) else np.float32(0.0)
+            a[i] = np.uint8(abs(np.float32(wr[i]) - q))
+        for x in range(w):  # without branches: LLVM vectorises the stride-3 reads
+            hit = np.int32((np.int32(a[_C * x]) > lim) | (np.int32(a[_C * x + 1]) > lim)
+                           | (np.int32(a[_C * x + 2]) > lim))
+            mk[x] = np.uint8(255 * hit)
+            count += hit
     return count
 
 
@@ -316,8 +342,8 @@ def warm() -> None:
     read_only = frame.copy()
     read_only.setflags(write=False)  # a read-only frame is another compiled form
     for f in (frame, read_only):
-        reduce_blur(f, 4, small, work, sub, v, t, blurred, acc, sums)
-        reduce_blur(f, 4, small, work[:0], sub[:0], v, t, blurred, acc, sums)
+        reduce_blur(f, 4, small, work, sub, v, t, blurred, acc, sums, 2, small[:1, :3])
+        reduce_blur(f, 4, small, work[:0], sub[:0], v, t, blurred, acc, sums, 2, small[:0])
         noise_sums(f, 4, sub, t, blurred, acc, sums)
     blur3(small, t, work)
     changed(np.zeros((2, 6), np.float32), model, work, small, np.zeros((2, 2), np.uint8), 10, np.zeros(6),

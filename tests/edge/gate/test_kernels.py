@@ -45,8 +45,22 @@ def test_reduction_and_blur_equal_opencv(k, h, w, seed, style):
     ref = reduce_cv(frame, k)
     assert np.array_equal(fw.small, ref)
     assert np.array_equal(fw.work, blur_cv(ref))
+    th, tw = fw.thumb.shape[:2]
+    thumb = cv2.resize(blur_cv(ref), (tw, th), interpolation=cv2.INTER_LINEAR)
+    assert np.array_equal(fw.thumbnail(), thumb)
     fw.blur_small()  # the blur alone (after the runtime's separate reduce)
     assert np.array_equal(fw.work, blur_cv(ref))
+    assert np.array_equal(fw.thumbnail(), thumb)
+
+
+@_SETTINGS
+@given(f=st.sampled_from([2, 4, 6, 8, 16]), h=st.integers(1, 17), w=st.integers(1, 17), seed=st.integers(0, 2**31),
+       style=st.integers(0, 2))
+def test_thumbnail_shrink_equals_opencv_linear_at_even_factors(f, h, w, seed, style):
+    img = _image(seed, (f * h, f * w, 3), style)
+    out = np.empty((h, w, 3), np.uint8)
+    K.shrink(img.reshape(f * h, f * w * 3), f, out.reshape(h, w * 3))
+    assert np.array_equal(out, cv2.resize(img, (w, h), interpolation=cv2.INTER_LINEAR))
 
 
 @_SETTINGS
@@ -227,6 +241,20 @@ def test_the_gate_equals_its_opencv_oracle_on_the_real_aurova_grasp():
     frames = [f for f in _real_frames() if f.shape == background.shape]
     results = _run_both(frames, GateOptions(), np.ascontiguousarray(background))
     assert any(r.contact for r in results)
+
+
+def test_changed_model_out_of_range_values_saturate_like_opencv():
+    """NaN, infinities and models beyond int32 (a near-uniform thumbnail's huge gain): convertScaleAbs
+    rounds to int32 first, which makes them 0, not 255."""
+    bg = np.array([[[np.nan, np.inf, -np.inf], [1e30, -1e30, 300.0], [2.1e9, 2.2e9, -254.6]]], np.float32)
+    work = np.array([[[7, 200, 13], [255, 0, 128], [3, 90, 250]]], np.uint8)
+    model = np.zeros((3, 4), np.float32)
+    model[[0, 1, 2], [0, 1, 2]] = 1.0
+    fw = FrameWork((4, 12, 3), 4, 3, 10.0)
+    fw.work[...] = work
+    n = fw.changed(bg, model)
+    ad, mask = changed_cv(work, bg, model, 10.0)
+    assert np.array_equal(fw.ad, ad) and np.array_equal(fw.mask, mask) and n == cv2.countNonZero(mask)
 
 
 def test_changed_model_rounds_like_opencv_next_to_the_half_grey_levels():
