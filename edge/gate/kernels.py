@@ -1,26 +1,25 @@
 """The contact gate's compiled per-frame kernels (numba; edge/gate/frame_work.py imports this module on
 first use, so importing the package does not load numba).
 
-Every kernel works on H x (W*3) uint8 rows (a frame's C-contiguous H x W x 3 buffer seen as 2-D), so
-its inner loops run at unit stride and LLVM vectorises them (no loop writes the array it reads; sums
-in int32 stored as uint8, so LLVM runs them in 16-bit lanes); horizontal neighbours are 3 apart. Each
-one equals the OpenCV calls it replaces bit for bit (tests/edge/gate/test_kernels.py holds those
+The kernels see a frame's C-contiguous H x W x 3 buffer as H rows of W*3 uint8 values (horizontal
+neighbours 3 apart) and loop over flat uint64 offsets (no negative-index checks), at unit stride, so
+LLVM vectorises the loops; sums are int32 stored as uint8 or uint16, so it runs them in 16-bit lanes.
+Each one equals the OpenCV calls it replaces bit for bit (tests/edge/gate/test_kernels.py holds those
 calls as the oracle):
 
-- :func:`reduce_blur`: ``area-2x-steps`` (log2(k) exact 2 x 2 box averages, each
-  ``(a + b + c + d + 2) >> 2``, OpenCV ``INTER_AREA`` at exactly 1/2) and the 3 x 3 Gaussian blur of
-  the result (``cv2.GaussianBlur(src, (3, 3), 0)``: weights 1-2-1 x 1-2-1, ``(sum + 8) >> 4``,
-  ``BORDER_REFLECT_101``), and where asked the noise sums below, in one call; :func:`blur3` the blur alone.
-  The thumbnail (:func:`shrink`, ``cv2.resize`` INTER_LINEAR at an even factor) in the same call.
-  The 2 x 2 steps run over whole rows and the output keeps one value in k (:func:`_pick`: four pixels
-  per three 32-bit stores).
+- :func:`reduce_blur`, one call per frame: ``area-2x-steps`` (log2(k) exact 2 x 2 box averages, each
+  ``(a + b + c + d + 2) >> 2``, OpenCV ``INTER_AREA`` at exactly 1/2), computed over whole rows, the
+  output keeping one value in k (:func:`_pick`: four pixels per three 32-bit stores where the
+  addresses allow); the 3 x 3 Gaussian blur of the result (``cv2.GaussianBlur(src, (3, 3), 0)``:
+  weights 1-2-1 x 1-2-1, ``(sum + 8) >> 4``, ``BORDER_REFLECT_101``; :func:`blur3` alone); its
+  thumbnail (:func:`shrink`: ``cv2.resize`` INTER_LINEAR at an even factor); where asked, the noise
+  sums below.
 - :func:`noise_sums`: the nearest subsample (``cv2.resize`` ``INTER_NEAREST`` at an integer factor:
   pixel (k y, k x)), its 3 x 3 blur, and the per-channel sums of |sub - blur|.
 - :func:`changed`: the model ``gain x background + offset`` (the product and sum in float64,
   rounded to float32 once, as ``cv2.transform`` of a float32 image by a diagonal matrix),
   ``convertScaleAbs`` (|x| rounded half to even, saturated; NaN and |x| >= 2^31 give 0 as its int32
-  rounding does), ``absdiff`` and the mask 255 where
-  any channel exceeds the integer bound.
+  rounding does), ``absdiff`` and the mask 255 where any channel exceeds the integer bound.
 - :func:`residual`: the thumbnail's photometric fit (``cv2.transform`` by the diagonal model,
   ``absdiff``, ``inRange`` within the tolerance, ``countNonZero``).
 - :func:`masked_sums`: a contact mask's area and the sums of |frame - model| over it
@@ -127,7 +126,7 @@ def _reduce_rows(f, n, y, k, v):  # pragma: no cover - compiled
     return src * n
 
 
-@compiled("contact gate kernels", inline="always")
+@_inline
 def _g(left, mid, right):  # pragma: no cover - compiled
     """One blurred value from the vertical sums of three neighbours: (l + 2 m + r + 8) >> 4."""
     return np.uint8((np.int32(left) + 2 * np.int32(mid) + np.int32(right) + 8) >> 4)
