@@ -10,6 +10,7 @@ import pytest
 from tactile_force.edge.bundle.manifest import ErrorReport, InputKind, InputSpec, Manifest, ModelOutputSpec, Provenance
 from tactile_force.edge.bundle.store import write_bundle
 from tactile_force.edge.frames import FrameSource, TimedFrame
+from thread_guard import thread_guard  # noqa: F401 - autouse: a test may not leave a thread running
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED_DATA = Path(os.environ.get("TACTILE_FORCE_SHARED_DATA", REPO.parent / "shared" / "data"))

@@ -94,6 +94,14 @@ __all__ = ["ForceRuntime"]
 _NO_FRAME = np.empty((0, 0, 3), np.uint8)
 
 
+def _end_threads(warm: WarmUps, workers: _Workers | None) -> None:
+    """Let a dropped runtime's grabber and worker threads end (no wait; they hold no runtime)."""
+    if warm.grabbers is not None:
+        warm.grabbers.stop(timeout_s=0.0)
+    if workers is not None:
+        workers.stop(timeout_s=0.0)
+
+
 @dataclass(slots=True)
 class _Lane:
     """One sensor's steps in a runtime: its gate step, its watch, and whether the model reads
@@ -196,8 +204,6 @@ class ForceRuntime:
         #: threads that run a step's per-sensor work when several frames are ready (workers.py)
         self.workers = worker_count(self.options.workers, len(sensors), clock is time.monotonic_ns)
         self._workers = _Workers(self.workers, "-".join(names)[:40]) if self.workers > 1 else None
-        if self._workers is not None:  # a runtime dropped without close() leaves no worker behind
-            weakref.finalize(self, self._workers.stop, 0.0)
         #: (frames, masks) to keep for frame sinks; (False, False) = none kept (zero cost).
         self.tap: tuple[bool, bool] = (False, False)
         #: (sensor, timestamp ns, HxWx3 uint8 BGR copy or None, HxW uint8 0/255 mask copy or
@@ -210,6 +216,7 @@ class ForceRuntime:
         # The step's reads, and getting ready shortly before the next frame is due at a slow
         # cadence where it pays on this host (prewarm.py, prewarm_decision.py).
         self._warm = WarmUps(self.sensors, model, self._judge, self._lanes, self.options, clock, self.stats)
+        weakref.finalize(self, _end_threads, self._warm, self._workers)  # dropped without close(): no thread left
         attach(model)  # last: a runtime that failed to build does not count as a user
 
     # -- public ---------------------------------------------------------------------------

@@ -15,6 +15,7 @@ from __future__ import annotations
 import os
 import queue
 import threading
+import time
 from collections.abc import Callable, Sequence
 from typing import Generic, TypeVar
 
@@ -136,10 +137,12 @@ class Workers:
             job.work()
 
     def stop(self, timeout_s: float = 1.0) -> None:
-        """End the helper threads (each finishes the item it works on first). Idempotent."""
+        """End the helper threads (each finishes the item it works on first) and join them for
+        up to ``timeout_s`` seconds in all (not per thread). Idempotent."""
         self._stopped = True
         for _ in self._threads:
             self._queue.put(None)
+        end = time.monotonic() + timeout_s
         for t in self._threads:
-            t.join(timeout_s)
+            t.join(max(0.0, end - time.monotonic()))
         self._threads = []

@@ -7,10 +7,10 @@ so a contact gate can learn its background, and the LEDs drift slowly over time.
 
 from __future__ import annotations
 
-import itertools
 import queue
 import threading
 import time
+import weakref
 
 import numpy as np
 
@@ -130,24 +130,37 @@ class VirtualDigitSource(FrameSource):
         return TimedFrame(frame=out.frame, timestamp_ns=ts, index=i, truth_n=float(force), meta=meta,
                           arrival_ns=time.monotonic_ns())
 
-    def _render_loop(self, q: queue.Queue[TimedFrame | None], stop: threading.Event) -> None:
-        items = (self._render(i) for i in range(self._i, len(self._plan)))
-        for item in itertools.chain(items, [None]):  # rendered lazily; None: the end of the stream
+    @staticmethod
+    def _render_loop(ref: weakref.ReferenceType[VirtualDigitSource], first: int,
+                     q: queue.Queue[TimedFrame | None], stop: threading.Event) -> None:
+        """Render frames ``first``, ... into ``q``, then None (the end of the stream), until
+        ``stop`` is set. Holds the source only while it renders a frame: a source dropped
+        without close() sets ``stop`` (its finalizer) and the thread ends."""
+        i = first
+        while not stop.is_set():
+            src = ref()
+            if src is None:
+                return
+            item = src._render(i) if i < len(src._plan) else None  # rendered lazily
+            del src
             while not stop.is_set():
                 try:
                     q.put(item, timeout=0.1)
                     break
                 except queue.Full:
                     continue
-            if stop.is_set():
+            if item is None:
                 return
+            i += 1
 
     def _next_rendered(self) -> TimedFrame | None:
         if self._queue is None:
             self._queue = queue.Queue(maxsize=self._ahead)
             self._stop = threading.Event()
-            self._thread = threading.Thread(target=self._render_loop, args=(self._queue, self._stop),
+            self._thread = threading.Thread(target=self._render_loop,
+                                            args=(weakref.ref(self), self._i, self._queue, self._stop),
                                             name=f"render-{self.name}", daemon=True)
+            weakref.finalize(self, self._stop.set)  # dropped without close(): the thread ends too
             self._thread.start()
         return self._queue.get()
 

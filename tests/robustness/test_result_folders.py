@@ -15,6 +15,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -410,19 +411,35 @@ def test_an_error_while_the_earlier_result_is_checked_at_publish_puts_it_back(tm
     assert (out / "a.txt").read_text() == "1" and sorted(p.name for p in tmp_path.iterdir()) == ["r"]
 
 
-def test_ctrl_c_while_publishing_waits_until_the_swap_is_whole(tmp_path, monkeypatch):
-    out = tmp_path / "r"
-    with staged_folder(out, "bench") as tmp:
-        (tmp / "a.txt").write_text("1")
-    real = atomic.verify
+@pytest.mark.parametrize("handler", ["python's", "ignored"])
+def test_ctrl_c_while_publishing_waits_until_the_swap_is_whole(tmp_path, monkeypatch, handler):
+    # The SIGINT handler the swap meets is set here: a pytest started in the background by a
+    # non-interactive shell inherits SIGINT ignored, and an ignored Ctrl-C stays ignored.
+    before = signal.signal(signal.SIGINT, signal.default_int_handler if handler == "python's" else signal.SIG_IGN)
+    try:
+        out = tmp_path / "r"
+        with staged_folder(out, "bench") as tmp:
+            (tmp / "a.txt").write_text("1")
+        real = atomic.verify
+        sent = []
 
-    def interrupted(folder, verb, known=None):
-        if Path(folder) != out:  # the earlier folder, swapped to the hidden path
-            os.kill(os.getpid(), signal.SIGINT)  # Ctrl-C in the middle of the swap
-        return real(folder, verb, known)
+        def interrupted(folder, verb, known=None):
+            if Path(folder) != out:  # the earlier folder, swapped to the hidden path
+                # Ctrl-C in the middle of the swap, aimed at the thread doing it: a process-wide
+                # kill may reach another thread, and the handler would then run when it happens to.
+                signal.pthread_kill(threading.main_thread().ident, signal.SIGINT)
+                sent.append(folder)
+            return real(folder, verb, known)
 
-    monkeypatch.setattr(atomic, "verify", interrupted)
-    with pytest.raises(KeyboardInterrupt), staged_folder(out, "bench", force=True) as tmp:
-        (tmp / "a.txt").write_text("2")
-    assert (out / "a.txt").read_text() == "2"  # delivered once the new result was whole in place
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["r"]  # the earlier one removed, nothing hidden
+        monkeypatch.setattr(atomic, "verify", interrupted)
+        if handler == "python's":
+            with pytest.raises(KeyboardInterrupt), staged_folder(out, "bench", force=True) as tmp:
+                (tmp / "a.txt").write_text("2")
+        else:  # ignored before the swap, ignored after it: the verb ends normally
+            with staged_folder(out, "bench", force=True) as tmp:
+                (tmp / "a.txt").write_text("2")
+        assert len(sent) == 1  # the signal was sent while the earlier folder sat at the hidden path
+        assert (out / "a.txt").read_text() == "2"  # delivered once the new result was whole in place
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["r"]  # the earlier one removed, nothing hidden
+    finally:
+        signal.signal(signal.SIGINT, before)

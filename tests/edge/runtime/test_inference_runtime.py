@@ -185,6 +185,7 @@ def test_unplugged_camera_and_bad_frames_keep_other_sensor_and_files(rgb_bundle,
     assert rt.stats.source_errors == 1 and rt.stats.invalid == 5
     for s in sinks:
         s.close()
+    rt.close()
 
 
 def test_two_sensors_in_contact_share_one_batch(rgb_bundle, aurova_dir):
@@ -196,6 +197,7 @@ def test_two_sensors_in_contact_share_one_batch(rgb_bundle, aurova_dir):
     assert rl.sensor == "left" and rr.sensor == "right"
     assert rl.latency.inference_ms == rr.latency.inference_ms  # one predict call, batch 2
     assert rl.force_n == pytest.approx(rr.force_n, abs=1e-5)
+    rt.close()
 
 
 def test_stale_and_late_with_a_fake_clock(rgb_bundle, aurova_dir):

@@ -112,7 +112,8 @@ def test_late_counts_from_arrival_not_from_the_timestamp_value(rgb_bundle, aurov
 # -- two sensors side by side --------------------------------------------------------------------
 class GatedCamera(FrameSource):
     """Camera-boundary fake: read() blocks until the test releases a frame (``release()``);
-    ``reading`` is set while a read waits. ``fail`` makes the next released read raise."""
+    ``reading`` is set while a read waits. ``fail`` makes the next released read raise.
+    ``close()`` ends a blocked read (None), as releasing a real capture does."""
 
     def __init__(self, frame: np.ndarray, n: int):
         super().__init__()
@@ -120,6 +121,7 @@ class GatedCamera(FrameSource):
         self.go = threading.Semaphore(0)
         self.reading = threading.Event()
         self.error: BaseException | None = None
+        self.closed = False
 
     def release(self, k: int = 1) -> None:
         for _ in range(k):
@@ -130,6 +132,8 @@ class GatedCamera(FrameSource):
         if not self.go.acquire(timeout=WAIT_S):
             raise RuntimeError("test fake: never released")
         self.reading.clear()
+        if self.closed:
+            return None
         if self.error is not None:
             raise self.error
         if self.left == 0:
@@ -138,6 +142,10 @@ class GatedCamera(FrameSource):
         i = self.stats.frames
         self.stats.frames += 1
         return TimedFrame(self.frame, i, i, arrival_ns=None)
+
+    def close(self) -> None:
+        self.closed = True
+        self.go.release()  # a read blocked in its grabber thread returns
 
 
 class ReadySource(FrameSource):
@@ -204,6 +212,7 @@ def test_grabber_errors_reach_the_loop(rgb_bundle, aurova_dir):
     by = {s: [r for r in readings if r.sensor == s] for s in "ab"}
     assert len(by["a"]) == 1 and by["a"][0].flags & Flags.INVALID_INPUT and "unplugged" in by["a"][0].detail
     assert len(by["b"]) == 2 and all(np.isfinite(r.force_n) for r in by["b"])
+    rt.close()
     # Anything else a source raises is not swallowed by its thread: step() raises it.
     c = GatedCamera(touch, 5)
     c.error = RuntimeError("driver bug")
@@ -212,3 +221,4 @@ def test_grabber_errors_reach_the_loop(rgb_bundle, aurova_dir):
     c.release()
     with pytest.raises(RuntimeError, match="driver bug"):
         rt2.step()
+    rt2.close()  # ends d's read, still blocked in its grabber thread

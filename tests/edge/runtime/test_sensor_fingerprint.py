@@ -31,10 +31,10 @@ def _unit(name: str) -> np.ndarray:
 def _virtual_frames(n: int = 240) -> list:
     from tactile_force.edge.synthetic import VirtualDigitSource
 
-    src = VirtualDigitSource(seed=3, n_grasps=3, peak_n=(4.0, 12.0))
     out = []
-    while len(out) < n and (tf := src.read()) is not None:
-        out.append(tf)
+    with VirtualDigitSource(seed=3, n_grasps=3, peak_n=(4.0, 12.0)) as src:
+        while len(out) < n and (tf := src.read()) is not None:
+            out.append(tf)
     return out
 
 

@@ -1,13 +1,15 @@
 """The workers of a runtime with several sensors (edge/runtime/workers.py): how many the auto
 rule picks, every item worked exactly once whichever thread takes it, an item's exception
-raised in the caller's thread, threads ended by stop(); ``RuntimeOptions.workers`` checked
-where it enters. Real threads; no timing assertions."""
+raised in the caller's thread, threads ended by stop(), or when their runtime (grabbers too)
+or virtual DIGIT is dropped without close(); ``RuntimeOptions.workers`` checked where it
+enters. Real threads; no timing assertions."""
 
 from __future__ import annotations
 
 import gc
 import threading
 
+import numpy as np
 import pytest
 from tactile_force.edge import ContactGate, ForceRuntime, OnnxForceModel, RuntimeOptions, Sensor
 from tactile_force.edge.errors import ArgumentTypeError, OptionsError
@@ -92,3 +94,34 @@ def test_one_sensor_keeps_the_single_thread_path_and_an_injected_clock_runs_one_
         t.join(20.0)
     assert not [t for t in threading.enumerate() if t.name == "work-g0-g1-1"]
     model.close()
+
+
+def _ended(name: str) -> bool:
+    """Whether every thread called ``name`` has ended (each joined for up to 20 s)."""
+    for t in [t for t in threading.enumerate() if t.name == name]:
+        t.join(20.0)
+    return not [t for t in threading.enumerate() if t.name == name]
+
+
+def test_a_runtime_dropped_without_close_leaves_no_grabber_behind():
+    model = OnnxForceModel(default_bundle_path())
+    frames = [np.zeros((320, 240, 3), np.uint8)] * 3
+    rt = ForceRuntime([Sensor(f"drop-{k}", ListSource(frames), ContactGate()) for k in "ab"], model,
+                      owns_model=False)
+    assert rt.start(wait_s=20.0)  # each grabber has handed over a frame and waits for room for the next
+    assert {"read-drop-a", "read-drop-b"} <= {t.name for t in threading.enumerate()}
+    del rt
+    gc.collect()
+    assert _ended("read-drop-a") and _ended("read-drop-b")
+    model.close()
+
+
+def test_a_virtual_digit_dropped_without_close_leaves_no_render_thread_behind():
+    from tactile_force.edge.synthetic import VirtualDigitSource
+
+    src = VirtualDigitSource(seed=3, n_grasps=1, name="dropped-digit", render_ahead=2)
+    assert src.read() is not None  # the render thread runs, its queue full, waiting for room
+    assert [t for t in threading.enumerate() if t.name == "render-dropped-digit"]
+    del src
+    gc.collect()
+    assert _ended("render-dropped-digit")
