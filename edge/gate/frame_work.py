@@ -3,7 +3,9 @@
 :class:`FrameWork` does, for :class:`~tactile_force.edge.gate.contact_gate.ContactGate`, what every
 frame needs before the judging: the one downscale (edge/gate/reduce.py's box average), the 3 x 3 blur
 of the reduced image (``work``), its thumbnail, the pixel-noise level and the changed-pixel mask with
-|frame - model|. The common case (a power-of-two factor dividing the frame, blur 3) runs the
+|frame - model| (one kernel call for the first four), and for the judging the thumbnail's photometric
+fit (:meth:`FrameWork.residual`) and the contact blob's area and deformation
+(:meth:`FrameWork.contact_stats`). The common case (a power-of-two factor dividing the frame, blur 3) runs the
 compiled kernels of edge/gate/kernels.py (numba, loaded on the first frame; the first run of a
 Python environment compiles them, later runs load them from numba's cache); they equal the
 OpenCV calls they replace bit for bit (tests/edge/gate/test_kernels.py holds those calls as the
