@@ -199,9 +199,11 @@ class FrameWork:
             cv2.absdiff(self.sub, self._sub_blur, dst=self._noise_d)
         return float(max(cv2.mean(self._noise_d)[:3]))
 
-    def _level(self) -> float:
-        """The noise level from the kernel's per-channel sums (cv2.mean: the integer sum times 1 / count)."""
-        inv = self._inv_n
+    def _level(self, inv: float | None = None) -> float:
+        """The largest per-channel mean from a kernel's integer sums in ``_sums``, as ``cv2.mean``
+        makes it: the sum times ``inv`` = 1 / count (default: the working image's pixels, the noise
+        level)."""
+        inv = self._inv_n if inv is None else inv
         s0, s1, s2 = self._sums.tolist()
         return max(s0 * inv, s1 * inv, s2 * inv)
 
@@ -217,11 +219,7 @@ class FrameWork:
         over them, grey levels; 0.0 for an empty mask), as ``cv2.countNonZero`` and ``cv2.mean``
         with the mask give them."""
         n = int(self._k.masked_sums(self.mask, self.ad, self._sums))
-        if n == 0:
-            return 0, 0.0
-        inv = 1.0 / n  # cv2.mean: the integer sum times 1 / count
-        s0, s1, s2 = self._sums.tolist()
-        return n, max(s0 * inv, s1 * inv, s2 * inv)
+        return (n, self._level(1.0 / n)) if n else (0, 0.0)
 
     def changed(self, bg: np.ndarray, model: np.ndarray) -> int:
         """|work - u8(gain x bg + offset)| per channel into ``ad`` and the changed mask (255 where a

@@ -47,23 +47,14 @@ _U = np.uint64
 
 
 @_inline
-def _step1(f, a, b, m, out, o):  # pragma: no cover - compiled
-    """The first 2 x 2 step of the frame rows at flat offsets ``a`` and ``b`` of ``f``:
-    ``out[o+i] = (f[a+i] + f[b+i] + f[a+i+3] + f[b+i+3] + 2) >> 2`` for i < m (uint8; the sums need 10
-    bits, so LLVM runs them in 16-bit lanes). Offsets are uint64: no negative-index checks."""
-    c = _U(_C)
+def _step(src, a, b, d, m, dst, o):  # pragma: no cover - compiled
+    """One 2 x 2 step of the rows at flat offsets ``a`` and ``b`` of ``src``, horizontal neighbours
+    ``d`` apart: ``dst[o+i] = (src[a+i] + src[a+i+d] + src[b+i] + src[b+i+d] + 2) >> 2`` for i < m
+    (uint8; the sums need 10 bits, so LLVM runs them in 16-bit lanes). Offsets are uint64: no
+    negative-index checks."""
     for i in range(m):
-        out[o + i] = np.uint8((np.int32(f[a + i]) + np.int32(f[b + i]) + np.int32(f[a + i + c])
-                               + np.int32(f[b + i + c]) + 2) >> 2)
-
-
-@_inline
-def _step(v, a, b, d, m, o):  # pragma: no cover - compiled
-    """A further 2 x 2 step of the rows at flat offsets ``a`` and ``b`` of ``v``, horizontal
-    neighbours ``d`` apart: ``v[o+i] = (v[a+i] + v[a+i+d] + v[b+i] + v[b+i+d] + 2) >> 2`` for i < m."""
-    for i in range(m):
-        v[o + i] = np.uint8((np.int32(v[a + i]) + np.int32(v[a + i + d]) + np.int32(v[b + i])
-                             + np.int32(v[b + i + d]) + 2) >> 2)
+        dst[o + i] = np.uint8((np.int32(src[a + i]) + np.int32(src[a + i + d]) + np.int32(src[b + i])
+                               + np.int32(src[b + i + d]) + 2) >> 2)
 
 
 @_inline
@@ -111,7 +102,7 @@ def _reduce_rows(f, n, y, k, v):  # pragma: no cover - compiled
     m = n - _U(_C)
     for p in range(half):
         r = (k * y + _U(2) * p) * n
-        _step1(f, r, r + n, m, v, p * n)
+        _step(f, r, r + n, _U(_C), m, v, p * n)
     d = _U(2 * _C)
     src = _U(0)
     rows = half
@@ -120,7 +111,7 @@ def _reduce_rows(f, n, y, k, v):  # pragma: no cover - compiled
         rows //= _U(2)
         m -= d
         for q in range(rows):
-            _step(v, (src + _U(2) * q) * n, (src + _U(2) * q + _U(1)) * n, d, m, (dst + q) * n)
+            _step(v, (src + _U(2) * q) * n, (src + _U(2) * q + _U(1)) * n, d, m, v, (dst + q) * n)
         src = dst
         d *= _U(2)
     return src * n
