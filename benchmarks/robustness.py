@@ -229,6 +229,7 @@ def run_catalogue(examples: int = 100, log: Callable[[str], None] = print) -> li
             t.add(probe_replay_vanish(base, paced))
 
         from . import robustness_inputs as i19
+        from . import robustness_mcap as mc
 
         t = category("inputs never destroyed (each writing verb aimed at its inputs, --force included)")
         ifolder = base / "inputs"
@@ -248,10 +249,10 @@ def run_catalogue(examples: int = 100, log: Callable[[str], None] = print) -> li
             t.note = "not run: the shared ball-press data is absent"
 
         t = category("MCAP log of a run stopped by SIGTERM, SIGINT, kill -9 (mcap library readers)")
-        if i19.mcap_available():
-            replay = i19.mcap_replay(base)
+        if mc.mcap_available():
+            replay = mc.mcap_replay(base)
             for sig in (signal.SIGTERM, signal.SIGINT, signal.SIGKILL):
-                t.add(i19.probe_mcap_signal(base, replay, sig))
+                t.add(mc.probe_mcap_signal(base, replay, sig))
         else:
             t.note = "not run: the 'mcap' extra is not installed"
 

@@ -27,7 +27,8 @@ from .harness.cases import (
     with_timeout,
 )
 from .harness.stats import MIN_P99_READINGS
-from .robustness_inputs import digest, mcap_replay, tiny_checkpoint
+from .robustness_inputs import digest, tiny_checkpoint
+from .robustness_mcap import mcap_replay
 
 Case = tuple[str, Callable[[], Verdict]]
 Cases = tuple[list[Case], str]
