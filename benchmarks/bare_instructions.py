@@ -4,8 +4,9 @@
 
 For each bundle: one onnxruntime session (the package's :func:`session_options`, one
 thread) fed one reduced synthetic frame (batch 1, the bundle's network input) is run under
-callgrind twice, ``--calls`` calls and 0 calls after the same set-up and warm-up; the
-difference of the two totals over ``--calls`` is the work of one call. Instruction counts
+callgrind, ``--calls`` calls after the set-up and warm-up, those calls alone counted
+(callgrind's client requests, :mod:`.harness.client_requests`, x86-64); their count over
+``--calls`` is the work of one call. Instruction counts
 move only when the code or the graph does (the same on a loaded or an idle host of one
 instruction set); they say nothing of the time an instruction takes on a given CPU.
 """
@@ -14,23 +15,25 @@ from __future__ import annotations
 
 import argparse
 import os
-import re
-import shutil
-import subprocess
 import sys
 import tempfile
 from pathlib import Path
+
+from .harness import callgrind
 
 WARMUP_CALLS = 5
 
 
 def _child(bundle: str, calls: int) -> None:
-    """Set up a bare session and run ``calls`` calls (the measured process)."""
+    """Set up a bare session and run ``calls`` calls, those alone counted (the measured process)."""
     import numpy as np
     import onnxruntime as ort
     from tactile_force.edge.bundle.store import load_bundle
     from tactile_force.edge.model.onnx_model import session_options
 
+    from .harness.client_requests import Segment, on_valgrind
+
+    on_valgrind()  # the request compiled before anything is counted
     b = load_bundle(bundle)
     sess = ort.InferenceSession(str(b.onnx_path), session_options(1), providers=["CPUExecutionProvider"])
     rng = np.random.default_rng(0)
@@ -41,32 +44,23 @@ def _child(bundle: str, calls: int) -> None:
     out = [o.name for o in sess.get_outputs()]
     for _ in range(WARMUP_CALLS):
         sess.run(out, feed)
-    for _ in range(calls):
-        sess.run(out, feed)
-
-
-def _total(bundle: str, calls: int, work: Path) -> int:
-    out = work / f"cg-{calls}.out"
-    cmd = ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}", sys.executable, "-m",
-           "benchmarks.bare_instructions", "--child", bundle, "--calls", str(calls)]
-    run = subprocess.run(cmd, capture_output=True, text=True, env={**os.environ, "OMP_NUM_THREADS": "1"})
-    if run.returncode != 0:
-        raise RuntimeError(f"callgrind run failed: {run.stderr[-2000:]}")
-    m = re.search(r"^summary:\s+(\d+)", out.read_text(), re.M) or re.search(r"^totals:\s+(\d+)", out.read_text(), re.M)
-    if m is None:
-        raise RuntimeError(f"{out}: no totals line")
-    return int(m.group(1))
+    with Segment("bare"):
+        for _ in range(calls):
+            sess.run(out, feed)
 
 
 def instructions_per_call(bundle: str | os.PathLike, calls: int = 200) -> float:
-    """Instructions of one bare batch-1 call of ``bundle`` (callgrind, difference of a run of
-    ``calls`` calls and a run of 0)."""
-    if shutil.which("valgrind") is None:
-        raise RuntimeError("valgrind is not installed: instruction counts need callgrind")
+    """Instructions of one bare batch-1 call of ``bundle`` (callgrind, ``calls`` calls counted
+    alone)."""
+    from .harness.client_requests import SUPPORTED
+
+    if not SUPPORTED:
+        raise RuntimeError("instruction counts here need callgrind's client requests, made on x86-64 only")
     with tempfile.TemporaryDirectory() as tmp:
-        n = _total(str(bundle), calls, Path(tmp))
-        z = _total(str(bundle), 0, Path(tmp))
-    return (n - z) / calls
+        prof = callgrind.run_segments([sys.executable, "-m", f"{__package__ or 'benchmarks'}.bare_instructions",
+                                       "--child", str(bundle), "--calls", str(calls)], Path(tmp) / "cg.out",
+                                      {**os.environ, "OMP_NUM_THREADS": "1"})
+    return prof["bare"].total / calls
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -10,9 +10,11 @@ session of the bundle's graph (one thread, sequential, the runtime's session opt
 same reduced inputs the runtime hands its model, and the stages alone: the gate step
 (``GateStep.run``: the frame contract, the exposure and the contact gate) and, for D and
 RGBmod+D, the depth stage on the gate's reduced image and mask. Each of these runs a few
-times to warm up; then one of them runs N times (``--readings``). A run with N = 0 counts
-the setup alone, so instructions per reading = (count of the run with N - count with 0) / N:
-imports, loading and warm-up cancel. The counts split by where the instructions ran (the
+times to warm up; then each runs N times (``--readings``), counted alone: one run under
+callgrind with instrumentation off until the worker turns it on around each mode's N calls
+(callgrind's client requests, benchmarks/harness/client_requests.py, x86-64; imports, loading
+and warm-up are neither instrumented nor counted), so instructions per reading = the mode's
+count / N. The counts split by where the instructions ran (the
 object files: onnxruntime, OpenCV, numpy, OpenBLAS, libc memset / memcpy, the interpreter,
 ...), and the stages by running them alone. Instruction counts do not depend on the load or
 clock of the host; the CPU model is named because libraries pick code paths by the CPU's
@@ -21,10 +23,8 @@ features (AVX2, AVX-512).
     python -m benchmarks instructions --out docs/benchmarks    # -> instructions.md + .json
     python -m benchmarks instructions --quick                  # a smoke run (few readings)
 
-Where valgrind is not installed the command says so and exits 0 without a page. Count on a
-quiet machine, one count at a time: the difference of two runs moves with anything that runs in
-one and not the other (bytecode compiled on a first run, a thread pool spinning longer under
-load).
+Where valgrind is not installed, or the host is not x86-64, the command says so and exits 0
+without a page.
 """
 
 from __future__ import annotations
@@ -33,6 +33,7 @@ import argparse
 import gc
 import json
 import os
+import platform
 import sys
 import tempfile
 import time
@@ -47,8 +48,8 @@ from .harness.paths import repo_root
 #: Shipped bundles measured: (folder under edge/models, label).
 VARIANTS: tuple[tuple[str, str], ...] = (("default", "RGBmod"), ("d", "D"), ("rgbmod_d", "RGBmod+D"),
                                          ("fast", "RGBmod fast"))
-#: What a worker run repeats N times ("none": the setup alone, the N = 0 run).
-MODES = ("none", "runtime", "bare", "gate", "depth")
+#: What a worker run counts, each mode N times.
+MODES = ("runtime", "bare", "gate", "depth")
 FRAMES = 16  # virtual DIGIT frames in contact, cycled
 WARMUP = 5  # runs of every mode before the measured ones, in every worker run
 READINGS = 200  # measured readings per run (--quick: 20)
@@ -63,7 +64,7 @@ def models_dir() -> Path:
 
 # ----------------------------------------------------------------------------- the worker
 class _Setup:
-    """Everything a worker run builds, whatever it measures (so the N = 0 run counts it)."""
+    """Everything a worker run builds (uncounted)."""
 
     def __init__(self, bundle_dir: Path, frames: Path, readings: int) -> None:
         import onnxruntime as ort
@@ -140,23 +141,29 @@ def _gate(background: np.ndarray):
 
 
 def worker(argv: list[str]) -> int:
-    """``python -m benchmarks.instructions --worker BUNDLE FRAMES MODE N``: set up, warm every
-    mode up, then run MODE N times (what callgrind counts)."""
+    """``python -m benchmarks.instructions --worker BUNDLE FRAMES MODES N``: set up, warm every
+    mode up, then run each mode of MODES (comma-separated) N times, each in its own callgrind
+    segment (:class:`~.harness.client_requests.Segment`: nothing else is counted)."""
     import cv2
+
+    from .harness.client_requests import Segment, on_valgrind
 
     # One OpenCV thread, as a scene with threads = 1 runs (edge/scene/build.py): a thread pool's
     # workers spin while they wait, and how long depends on the host's load, not on the code.
     cv2.setNumThreads(1)
-    bundle, frames, mode, n = Path(argv[0]), Path(argv[1]), argv[2], int(argv[3])
-    setup = _Setup(bundle, frames, n if mode == "runtime" else 0)
-    for m in MODES[1:]:
+    bundle, frames, modes, n = Path(argv[0]), Path(argv[1]), argv[2].split(","), int(argv[3])
+    on_valgrind()  # the request compiled before anything is counted
+    setup = _Setup(bundle, frames, n if "runtime" in modes else 0)
+    for m in MODES:
         for _ in range(WARMUP if m != "runtime" else 0):
             setup.once(m)
-    for _ in range(WARMUP):  # the runtime's warm-up readings, in every run
+    for _ in range(WARMUP):  # the runtime's warm-up readings
         setup.once("runtime")
-    gc.collect()
-    for _ in range(n if mode != "none" else 0):
-        setup.once(mode)
+    for mode in modes:
+        gc.collect()
+        with Segment(mode):
+            for _ in range(n):
+                setup.once(mode)
     return 0
 
 
@@ -173,12 +180,11 @@ class Count:
 @dataclass
 class VariantCounts:
     """One bundle's counts: mode -> :class:`Count` (runtime, bare, gate, depth where it has
-    one), the setup's own count (the N = 0 run) and the ratio runtime / bare."""
+    one) and the ratio runtime / bare."""
 
     bundle: str
     label: str
     counts: dict[str, Count]
-    setup: int
     ratio: float
 
 
@@ -222,56 +228,40 @@ def _env() -> dict[str, str]:
 
 
 def count_variant(bundle: Path, label: str, frames: Path, readings: int, tmp: Path, log=print,
-                  modes: tuple[str, ...] = MODES[1:]) -> VariantCounts:
-    """Count one bundle: a run with N = 0 and one per mode of ``modes`` with N = ``readings``
-    (runtime and bare always; depth only for a bundle with a depth input)."""
+                  modes: tuple[str, ...] = MODES) -> VariantCounts:
+    """Count one bundle's modes of ``modes`` (runtime and bare always; depth only for a bundle with
+    a depth input), N = ``readings`` each, in one run: each mode in its own segment
+    (:mod:`.harness.client_requests`)."""
     from tactile_force.edge.bundle.manifest import InputKind
     from tactile_force.edge.bundle.store import read_manifest
 
     has_depth = read_manifest(bundle / "model.json").input(InputKind.DEPTH) is not None
     wanted = {*modes, "runtime", "bare"}
-    modes = ("none", *(m for m in MODES[1:] if m in wanted and (m != "depth" or has_depth)))
-    env = _env()
-    profiles: dict[str, callgrind.Profile] = {}
-    for m in modes:
-        n = 0 if m == "none" else readings
-        t = time.monotonic()
-        cmd = [sys.executable, "-m", f"{__package__ or 'benchmarks'}.instructions", "--worker", str(bundle),
-               str(frames), m, str(n)]
-        profiles[m] = callgrind.run(cmd, tmp / f"callgrind.{bundle.name}.{m}.out", env)
-        log(f"  {label} {m} x{n}: {profiles[m].total:,} instructions ({time.monotonic() - t:.0f} s)")
-    base = profiles["none"]
-    bg = base.by_group()
-    counts = {}
-    for m in modes[1:]:
-        p = profiles[m]
-        g = p.by_group()
-        counts[m] = Count((p.total - base.total) / readings, {k: (g[k] - bg[k]) / readings for k in g})
-    ratio = counts["runtime"].total / counts["bare"].total
-    return VariantCounts(bundle.name, label, counts, base.total, ratio)
+    modes = tuple(m for m in MODES if m in wanted and (m != "depth" or has_depth))
+    t = time.monotonic()
+    profiles = callgrind.run_segments([sys.executable, "-m", f"{__package__ or 'benchmarks'}.instructions",
+                                       "--worker", str(bundle), str(frames), ",".join(modes), str(readings)],
+                                      tmp / f"callgrind.{bundle.name}.out", _env())
+    missing = set(modes) - set(profiles)
+    if missing:
+        raise RuntimeError(f"{label}: no count of {', '.join(sorted(missing))} in the worker's run")
+    counts = {m: Count(profiles[m].total / readings, {k: v / readings for k, v in profiles[m].by_group().items()})
+              for m in modes}
+    log(f"  {label} {', '.join(modes)} x{readings}: " + ", ".join(f"{m} {profiles[m].total:,}" for m in modes)
+        + f" instructions ({time.monotonic() - t:.0f} s)")
+    return VariantCounts(bundle.name, label, counts, counts["runtime"].total / counts["bare"].total)
 
 
 def measure(readings: int, variants: list[str] | None = None, log=print,
-            modes: tuple[str, ...] = MODES[1:]) -> list[VariantCounts]:
+            modes: tuple[str, ...] = MODES) -> list[VariantCounts]:
     """Counts of the shipped bundles named in ``variants`` (folders; default every bundle of VARIANTS), the
     modes of ``modes`` (runtime and bare always)."""
     out = []
     with tempfile.TemporaryDirectory(prefix="instructions-") as d:
         tmp = Path(d)
         frames = _frames_file(tmp)
-        # One uncounted run first, itself under callgrind: no counted run compiles bytecode (a run
-        # that writes the .pyc files counts tens of millions of instructions more than the next),
-        # and numba's cache then holds the gate's kernels compiled for the CPU valgrind reports
-        # (it is not the host's: without it every counted run compiles them again, billions of
-        # instructions that differ from run to run). A depth bundle where one is counted, so the depth
-        # stage's kernels are compiled there too (else the first counted bundle: compiling them under
-        # valgrind takes a minute).
-        names = [name for name, _ in VARIANTS if variants is None or name in variants]
-        first = "rgbmod_d" if {"d", "rgbmod_d"} & set(names) else (names[0] if names else "default")
-        callgrind.run([sys.executable, "-m", f"{__package__ or 'benchmarks'}.instructions", "--worker",
-                       str(models_dir() / first), str(frames), "none", "0"], tmp / "callgrind.first.out", _env())
         for name, label in VARIANTS:
-            if name in names:
+            if variants is None or name in variants:
                 out.append(count_variant(models_dir() / name, label, frames, readings, tmp, log, modes))
     return out
 
@@ -301,8 +291,8 @@ def stages(v: VariantCounts) -> dict[str, float]:
 
 
 def _variants(raw: list) -> list[VariantCounts]:
-    return [VariantCounts(v["bundle"], v["label"], {k: Count(**c) for k, c in v["counts"].items()}, v["setup"],
-                          v["ratio"]) for v in raw]
+    return [VariantCounts(v["bundle"], v["label"], {k: Count(**c) for k, c in v["counts"].items()}, v["ratio"])
+            for v in raw]
 
 
 def _fast_ratio(variants: list[VariantCounts]) -> float | None:
@@ -322,7 +312,7 @@ def page(rec: Record) -> str:
            f"CPU: {rec.cpu}. Machine: {rec.machine}.", "",
            f"Counted by {rec.valgrind} (callgrind: instructions executed, the same on any load or clock). Per "
            f"shipped bundle, {rec.readings} readings back to back over {rec.frames} virtual DIGIT frames in contact, "
-           f"after {rec.warmup} warm-up readings, minus a run that sets up the same and measures nothing "
+           f"after {rec.warmup} warm-up readings, each stage counted alone in the bundle's one run "
            "(benchmarks/instructions.py). 'runtime': one `ForceRuntime.step` (one sensor, in-memory source, "
            "warm-ups off); 'bare': one `InferenceSession.run` of the bundle's graph (one thread) on the same reduced "
            "inputs; 'gate': the gate step alone (frame contract, exposure, contact gate); 'depth': the depth stage "
@@ -381,9 +371,8 @@ def page(rec: Record) -> str:
             rows.append([v.label, mode if b is None else f"{mode} (after)", _m(cnt.total),
                          *(_m(cnt.groups[g]) for g in groups)])
     out += [markdown_table(["bundle", "what", "total", *groups], rows), ""]
-    out += ["Setup (the N = 0 run, imports included): "
-            + ", ".join(f"{v.label} {v.setup / 1e9:.2f} G" for v in rec.variants)
-            + f". Counting took {rec.seconds:.0f} s.", ""]
+    out += [f"Each bundle's modes counted in one run, each alone (callgrind's client requests; set-up and "
+            f"imports neither instrumented nor counted). Counting took {rec.seconds:.0f} s.", ""]
     return "\n".join(out) + "\n"
 
 
@@ -391,12 +380,17 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
     """``python -m benchmarks instructions``: count, write instructions.json then .md to ``args.out``."""
     from tactile_force.edge.files.atomic import staged_file
 
+    from .harness.client_requests import SUPPORTED
     from .harness.machine import command_line, describe_machine
     from .harness.paths import source_commit
 
     if callgrind.valgrind() is None:
         print("instructions: valgrind is not installed on this host; instruction counts need valgrind's callgrind "
               "(e.g. apt-get install valgrind). Nothing counted.", file=sys.stderr)
+        return 0
+    if not SUPPORTED:
+        print(f"instructions: this benchmark counts each stage with callgrind's client requests, made here on "
+              f"x86-64 only, not {platform.machine()}. Nothing counted.", file=sys.stderr)
         return 0
     readings = args.readings if args.readings else (20 if args.quick else READINGS)
     before_commit, before = "", []

@@ -4,7 +4,8 @@ file (onnxruntime, OpenCV, numpy, OpenBLAS, the interpreter, ...) and, inside th
 memset / memcpy apart from the rest.
 
 Instruction counts do not depend on the machine's load or clock: the figure that moves only
-when the code does. Callgrind runs a program about 50x slower than natively.
+when the code does. Callgrind runs a program about 50x slower than natively where it instruments it (run_segments: only
+the segments the program marks).
 """
 
 from __future__ import annotations
@@ -138,11 +139,14 @@ def parse(path: str | os.PathLike) -> Profile:
     return Profile(total, by)
 
 
-def run(cmd: Sequence[str], out_file: Path, env: Mapping[str, str] | None = None, timeout_s: float = 900) -> Profile:
-    """Run ``cmd`` under callgrind (instructions only, no cache simulation), its profiles into
-    ``out_file``-NN (one per thread); returns the main thread's parsed. Raises
-    :class:`ValgrindMissing` without valgrind and ``subprocess.CalledProcessError`` when the
-    command fails."""
+def run_segments(cmd: Sequence[str], out_file: Path, env: Mapping[str, str] | None = None,
+                 timeout_s: float = 900) -> dict[str, Profile]:
+    """Run ``cmd`` under callgrind (instructions only, no cache simulation) with instrumentation
+    and counting off until the program turns them on (its
+    :class:`~.client_requests.Segment` blocks); returns each segment's profile of the main
+    thread (``out_file``.K-01) by the segment's name. Raises :class:`ValgrindMissing` without
+    valgrind, ``subprocess.CalledProcessError`` when the command fails and ``RuntimeError`` when
+    it wrote no segment."""
     vg = valgrind()
     if vg is None:
         raise ValgrindMissing("valgrind is not installed on this host: instruction counts need valgrind's callgrind "
@@ -150,9 +154,19 @@ def run(cmd: Sequence[str], out_file: Path, env: Mapping[str, str] | None = None
     # The main thread only (``-01``): a helper thread that spins while it waits (a library's pool)
     # counts as long as the run lasts, which the machine's load decides, not the code.
     full = [vg, "--tool=callgrind", f"--callgrind-out-file={out_file}", "--compress-strings=no",
-            "--compress-pos=no", "--dump-line=no", "--separate-threads=yes", *cmd]
+            "--compress-pos=no", "--dump-line=no", "--separate-threads=yes", "--instr-atstart=no",
+            "--collect-atstart=no", *cmd]
     proc = subprocess.run(full, env=None if env is None else dict(env), capture_output=True, text=True,
                           timeout=timeout_s)
     if proc.returncode != 0:
         raise subprocess.CalledProcessError(proc.returncode, full, proc.stdout, proc.stderr)
-    return parse(f"{out_file}-01")
+    out: dict[str, Profile] = {}
+    for part in sorted(out_file.parent.glob(f"{out_file.name}.*-01")):
+        with open(part, encoding="utf-8", errors="replace") as f:
+            trigger = next((line for line in f if line.startswith("desc: Trigger:")), "")
+        m = re.search(r"Client Request: (\w+)", trigger)
+        if m:
+            out[m.group(1)] = parse(part)
+    if not out:
+        raise RuntimeError(f"{' '.join(cmd)} counted no segment under callgrind (no dump in {out_file.parent})")
+    return out

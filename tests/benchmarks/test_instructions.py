@@ -1,8 +1,10 @@
 """``python -m benchmarks instructions``: callgrind's profile read right, the record's structure,
-and a runtime reading that executes at least what its bare graph's call does.
+each mode counted alone in one run, and a runtime reading that executes at least what its bare
+graph's call does.
 
 Real valgrind, onnxruntime and OpenCV on the shipped default bundle, a few readings (callgrind
-runs a program about 50x slower); skipped where valgrind is not installed. No timing assertions.
+runs a program about 50x slower); skipped where valgrind is not installed or the host is not
+x86-64 (the client requests). No timing assertions.
 """
 
 from __future__ import annotations
@@ -15,10 +17,11 @@ from pathlib import Path
 
 import pytest
 from tactile_force.benchmarks import instructions
-from tactile_force.benchmarks.harness import callgrind
+from tactile_force.benchmarks.harness import callgrind, client_requests
 
-needs_valgrind = pytest.mark.skipif(callgrind.valgrind() is None,
-                                    reason="valgrind is not installed: instruction counts need valgrind's callgrind")
+needs_valgrind = pytest.mark.skipif(callgrind.valgrind() is None or not client_requests.SUPPORTED,
+                                    reason="valgrind is not installed or the host is not x86-64: instruction counts "
+                                           "need valgrind's callgrind and its client requests")
 
 
 def test_parse_reads_self_costs_and_skips_inclusive_call_costs(tmp_path: Path) -> None:
@@ -45,12 +48,32 @@ def test_without_valgrind_the_command_says_so_and_exits_0(monkeypatch, capsys, t
     assert not list(tmp_path.iterdir())
 
 
+def test_without_client_requests_the_command_says_so_and_exits_0(monkeypatch, capsys, tmp_path: Path) -> None:
+    monkeypatch.setattr(client_requests, "SUPPORTED", False)
+    monkeypatch.setattr(callgrind, "valgrind", lambda: "/usr/bin/valgrind")
+    args = argparse.Namespace(readings=1, quick=True, variants=None, before=None, out=tmp_path)
+    assert instructions.run(args, ["instructions", "--quick"]) == 0
+    assert "x86-64 only" in capsys.readouterr().err
+    assert not list(tmp_path.iterdir())
+
+
+def test_outside_valgrind_a_segment_counts_nothing_and_changes_nothing() -> None:
+    if not client_requests.SUPPORTED:
+        pytest.skip("the client requests are made on x86-64 only")
+    assert not client_requests.on_valgrind()
+    with client_requests.Segment("bare") as seg:
+        x = sum(range(10))
+    assert x == 45 and isinstance(seg, client_requests.Segment)
+    with pytest.raises(ValueError, match="identifier"):
+        client_requests.Segment("two words")
+
+
 @needs_valgrind
 def test_a_runtime_reading_counts_at_least_its_bare_call(tmp_path: Path) -> None:
-    """Twenty readings of the default bundle (runtime, bare call, gate, the N = 0 run): the record
-    is complete and a reading executes at least what the bare graph's call does. (Fewer readings
-    leave the difference at the mercy of what a run's setup counts besides: onnxruntime's own
-    count moved by megainstructions between runs.)"""
+    """Twenty readings of the default bundle, each mode (runtime, bare call, gate) counted alone in
+    one run: the record is complete, each mode's count is its own (the gate is far less than the
+    runtime, and its work is in OpenCV and the gate's kernels, not onnxruntime), and a reading
+    executes at least what the bare graph's call does."""
     out = tmp_path / "out"
     proc = subprocess.run([sys.executable, "-m", "tactile_force.benchmarks", "instructions", "--readings", "20",
                            "--variants", "default", "--out", str(out)], capture_output=True, text=True, timeout=900)
@@ -68,6 +91,9 @@ def test_a_runtime_reading_counts_at_least_its_bare_call(tmp_path: Path) -> None
     assert counts["bare"]["total"] > 1e5  # a graph call is work
     assert counts["runtime"]["total"] >= counts["bare"]["total"]
     assert counts["gate"]["groups"]["OpenCV"] > 0
+    assert counts["gate"]["groups"]["onnxruntime"] == 0  # the gate's segment holds no model call
+    assert counts["gate"]["total"] < 0.5 * counts["runtime"]["total"]
+    assert counts["runtime"]["groups"]["onnxruntime"] >= 0.9 * counts["bare"]["groups"]["onnxruntime"]
     assert v["ratio"] == pytest.approx(counts["runtime"]["total"] / counts["bare"]["total"])
     page = (out / "instructions.md").read_text()
     assert rec["cpu"] in page and rec["commit"] in page and "RGBmod" in page
@@ -77,7 +103,7 @@ def test_page_with_a_before_record_shows_the_goals_and_each_stage_before_and_aft
     g = dict.fromkeys(callgrind.GROUP_NAMES, 0.0)
     after = instructions.VariantCounts("default", "RGBmod", {"runtime": instructions.Count(4.2e6, g),
                                                                "bare": instructions.Count(3.7e6, g),
-                                                               "gate": instructions.Count(0.4e6, g)}, 1, 4.2 / 3.7)
+                                                               "gate": instructions.Count(0.4e6, g)}, 4.2 / 3.7)
     before = [{"bundle": "default", "label": "RGBmod", "setup": 1, "ratio": 5.2 / 3.7,
                "counts": {k: {"total": t, "groups": g} for k, t in (("runtime", 5.2e6), ("bare", 3.7e6),
                                                                      ("gate", 1.3e6))}}]
