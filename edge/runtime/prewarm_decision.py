@@ -137,7 +137,7 @@ def judge(off: Arm, on: Arm) -> tuple[bool, str]:
     names = sorted(set(off.totals) | set(on.totals))
     raised = [n for n in names if tail_raised(off.totals.get(n, []), on.totals.get(n, []), ALPHA / len(names))]
     if raised:
-        return False, f"off (they raise the p99 of {', '.join(raised)}: {p99s})"
+        return False, f"off (they raise the latency tail of {', '.join(raised)}: {p99s})"
     gain = 1.0 - on.p50 / off.p50 if off.p50 > 0 else 0.0
     base = off.cpu_per_reading_ns
     cost = on.cpu_per_reading_ns / base - 1.0 if base > 0 else (0.0 if on.cpu_per_reading_ns <= 0 else float("inf"))

@@ -128,7 +128,7 @@ def test_warm_ups_that_pay_are_kept():
 def test_warm_ups_that_raise_the_worst_p99_are_turned_off():
     host = Host(Cost(p50_off=1.0, p50_on=0.5, cpu_off=1.0, cpu_on=1.1, tail_off=1.0, tail_on=5.0), sensors=3)
     host.run(TRIAL_S)
-    assert host.decision.state.startswith("off (they raise the p99 of s0, s1, s2: worst sensor's p99")
+    assert host.decision.state.startswith("off (they raise the latency tail of s0, s1, s2: worst sensor's p99")
 
 
 def test_never_on_a_busy_core():
@@ -203,7 +203,7 @@ def test_warm_ups_that_bring_more_hiccups_are_turned_off():
     for seed in range(20):
         host = Host(Cost(**{**PAYS, "hiccup_on": 0.1, "hiccup_on_ms": 5.0}), seed=seed)
         host.run(TRIAL_S)
-        off += host.decision.state.startswith("off (they raise the p99 of s0: worst sensor's p99")
+        off += host.decision.state.startswith("off (they raise the latency tail of s0: worst sensor's p99")
     assert off >= 18
 
 
