@@ -142,13 +142,23 @@ def fit_knots(raw: np.ndarray, truth: np.ndarray, method: str = "isotonic") -> t
             raise CalibrationRefused("the isotonic fit pooled every frame into one level: the model's estimate "
                                      "does not order these presses by force")
     ys = [max(0.0, y) for y in ys]  # a force is >= 0 N (rounding can leave -1e-17); still non-decreasing
-    # linear extension with the overall least-squares slope
+    # linear extension with the overall least-squares slope; where the extension is shorter than
+    # the float spacing at the end knot (a level a rounding step from 0 or EXTRAPOLATE_TO_N N), the
+    # end knot itself takes the limit: knots stay strictly increasing
     if ys[0] > 0:
-        xs.insert(0, xs[0] - ys[0] / slope)
-        ys.insert(0, 0.0)
+        x0 = xs[0] - ys[0] / slope
+        if x0 < xs[0]:
+            xs.insert(0, x0)
+            ys.insert(0, 0.0)
+        else:
+            ys[0] = 0.0
     if ys[-1] < EXTRAPOLATE_TO_N:
-        xs.append(xs[-1] + (EXTRAPOLATE_TO_N - ys[-1]) / slope)
-        ys.append(EXTRAPOLATE_TO_N)
+        x1 = xs[-1] + (EXTRAPOLATE_TO_N - ys[-1]) / slope
+        if x1 > xs[-1]:
+            xs.append(x1)
+            ys.append(EXTRAPOLATE_TO_N)
+        else:
+            ys[-1] = EXTRAPOLATE_TO_N
     return xs, ys
 
 

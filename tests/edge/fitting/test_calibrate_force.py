@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from tactile_force.edge import AuthorsDataset, BundleError, default_bundle_path, load_bundle
 from tactile_force.edge.bundle.force_calibration import ForceCalibration
@@ -33,7 +33,10 @@ finite = st.floats(min_value=-5, max_value=30, allow_nan=False, allow_infinity=F
 
 # -- the fit --------------------------------------------------------------------------------
 @settings(max_examples=60, deadline=None)
-@given(st.lists(st.tuples(finite, st.floats(0.2, 20)), min_size=3, max_size=30), st.sampled_from(["isotonic", "linear"]))
+@given(st.lists(st.tuples(finite, st.floats(0.2, 20)), min_size=3, max_size=30),
+       st.sampled_from(["isotonic", "linear"]))
+@example([(2.0, 1.0), (2.0, 1.0), (3.0, 19.999999999999996)], "isotonic")  # top level a rounding step under 20 N
+@example([(2.0, 1e-15), (3.0, 5.0), (4.0, 9.0)], "isotonic")  # bottom level a rounding step over 0 N
 def test_fitted_map_is_monotone_everywhere(points, method):
     raw = np.array([p[0] for p in points])
     truth = np.array([p[1] for p in points])
