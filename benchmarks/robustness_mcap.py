@@ -18,7 +18,9 @@ from .robustness_inputs import TF_CLI
 
 
 # ================================================================== MCAP killed
-def _mcap_forces(path: Path, sequential: bool) -> list[float]:
+def mcap_forces(path: Path, sequential: bool) -> list[float]:
+    """The force of every /tactile/force message of the MCAP log ``path`` (N), read by the mcap
+    library's ``NonSeekingReader`` (``sequential``) or ``make_reader``, both with their defaults."""
     from mcap.reader import NonSeekingReader, make_reader
     from tactile_force.edge.outputs.ros2_messages import WrenchStamped
 
@@ -48,6 +50,39 @@ def mcap_replay(folder: Path) -> Path:
     return root
 
 
+class RunEndedEarly(RuntimeError):
+    """The run ended before it could be stopped (``stderr``: what it wrote there)."""
+
+    def __init__(self, stderr: str) -> None:
+        super().__init__(f"run ended before the signal: {stderr[-800:]}")
+        self.stderr = stderr
+
+
+def stopped_run(replay: Path, folder: Path, sig: int, after: int = 12,
+                timeout_s: float = 60) -> tuple[subprocess.CompletedProcess, Path, Path]:
+    """A real ``tactile-force run --source replay --fps 20 --out r.csv --out r.mcap`` into ``folder``,
+    sent ``sig`` once its CSV holds ``after`` readings: (the finished process, the CSV, the log).
+    Raises :class:`RunEndedEarly` when the run ended before the signal and
+    ``subprocess.TimeoutExpired`` when it did not stop within ``timeout_s`` (it is killed)."""
+    out_csv, out_mcap = folder / "r.csv", folder / "r.mcap"
+    proc = subprocess.Popen([sys.executable, str(TF_CLI), "run", "--source", str(replay), "--fps", "20",
+                             "--out", str(out_csv), "--out", str(out_mcap)],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        end = time.monotonic() + 120
+        while time.monotonic() < end and proc.poll() is None and _csv_count(out_csv) < after:
+            time.sleep(0.05)
+        if proc.poll() is not None:
+            raise RunEndedEarly(proc.stderr.read() if proc.stderr else "")
+        proc.send_signal(sig)
+        _, err = proc.communicate(timeout=timeout_s)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    return subprocess.CompletedProcess(proc.args, proc.returncode, "", err), out_csv, out_mcap
+
+
 def probe_mcap_signal(folder: Path, replay: Path, sig: int) -> Verdict:
     """A real ``tactile-force run --out r.csv --out r.mcap`` stopped by ``sig`` after 12 readings;
     the mcap library's readers must return every reading the CSV holds (kill -9: at most the one
@@ -56,28 +91,19 @@ def probe_mcap_signal(folder: Path, replay: Path, sig: int) -> Verdict:
     d = folder / f"mcap_{name}"
     shutil.rmtree(d, ignore_errors=True)
     d.mkdir(parents=True)
-    out_csv, out_mcap = d / "r.csv", d / "r.mcap"
-    proc = subprocess.Popen([sys.executable, str(TF_CLI), "run", "--source", str(replay), "--fps", "20",
-                             "--out", str(out_csv), "--out", str(out_mcap)],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     try:
-        end = time.monotonic() + 120
-        while time.monotonic() < end and proc.poll() is None and _csv_count(out_csv) < 12:
-            time.sleep(0.05)
-        if proc.poll() is not None:
-            return Verdict(Outcome.TRACEBACK, f"{name}: run ended before the signal: {proc.stderr.read()[-200:]}")
-        proc.send_signal(sig)
-        _, err = proc.communicate(timeout=60)
+        done, out_csv, out_mcap = stopped_run(replay, d, sig)
+    except RunEndedEarly as exc:
+        return Verdict(Outcome.TRACEBACK, f"{name}: run ended before the signal: {exc.stderr[-200:]}")
     except subprocess.TimeoutExpired:
-        proc.kill()
-        proc.communicate()
         return Verdict(Outcome.HANG, f"{name}: run did not stop within 60 s")
+    err = done.stderr
     written = _csv_count(out_csv)
     verdicts = []
     for sequential in (False, True):
         who = "NonSeekingReader" if sequential else "make_reader"
         try:
-            got = len(_mcap_forces(out_mcap, sequential))
+            got = len(mcap_forces(out_mcap, sequential))
         except Exception as exc:  # noqa: BLE001 - the library refusing the file is the finding
             verdicts.append(Verdict(Outcome.DATA_LOST, f"{name}: {who} read nothing: {type(exc).__name__}: "
                                                        f"{str(exc)[:120]} ({written} readings written)"))

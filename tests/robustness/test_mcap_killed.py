@@ -9,9 +9,6 @@ from __future__ import annotations
 import csv
 import math
 import signal
-import subprocess
-import sys
-import time
 from pathlib import Path
 
 import pytest
@@ -19,12 +16,10 @@ import pytest
 pytest.importorskip("mcap", reason="MCAP output needs the 'mcap' extra")
 pytest.importorskip("cyclonedds", reason="MCAP output serialises CDR with cyclonedds (the 'mcap' extra)")
 
-from mcap.reader import NonSeekingReader, make_reader  # noqa: E402
-from tactile_force.edge.outputs.ros2_messages import WrenchStamped  # noqa: E402
+from mcap.reader import make_reader  # noqa: E402
 
+from benchmarks.robustness_mcap import mcap_forces, stopped_run  # noqa: E402
 from tests.conftest import shared_data  # noqa: E402
-
-TF_CLI = Path(__file__).with_name("tf_cli.py")
 
 
 @pytest.fixture(scope="module")
@@ -48,48 +43,19 @@ def _csv_forces(path: Path) -> list[float]:
     return [float(r["force_n"]) if r["force_n"] not in ("", "nan") else math.nan for r in rows]
 
 
-def _mcap_forces(path: Path, sequential: bool) -> list[float]:
-    with open(path, "rb") as fh:
-        reader = NonSeekingReader(fh) if sequential else make_reader(fh)
-        return [WrenchStamped.deserialize(m.data).wrench.force.z
-                for _, ch, m in reader.iter_messages() if ch.topic == "/tactile/force"]
-
-
 def _same(a: list[float], b: list[float]) -> bool:
     return len(a) == len(b) and all((math.isnan(x) and math.isnan(y)) or abs(x - y) < 1e-9 for x, y in zip(a, b))
 
 
-def _stopped_run(replay: Path, tmp_path: Path, sig: int, after: int = 12) -> tuple[subprocess.CompletedProcess, Path,
-                                                                                       Path]:
-    out_csv, out_mcap = tmp_path / "r.csv", tmp_path / "r.mcap"
-    proc = subprocess.Popen([sys.executable, str(TF_CLI), "run", "--source", str(replay), "--fps", "20",
-                             "--out", str(out_csv), "--out", str(out_mcap)],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        end = time.monotonic() + 120
-        while time.monotonic() < end and proc.poll() is None:
-            if out_csv.is_file() and len(out_csv.read_text().splitlines()) > after:
-                break
-            time.sleep(0.05)
-        assert proc.poll() is None, f"run ended before the signal: {proc.stderr.read()[-800:] if proc.stderr else ''}"
-        proc.send_signal(sig)
-        stdout, stderr = proc.communicate(timeout=60)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.communicate()
-    return subprocess.CompletedProcess(proc.args, proc.returncode, stdout, stderr), out_csv, out_mcap
-
-
 @pytest.mark.parametrize("sig, code", [(signal.SIGTERM, 143), (signal.SIGINT, 130)])
 def test_sigterm_and_sigint_finalize_the_log(replay, tmp_path, sig, code):
-    done, out_csv, out_mcap = _stopped_run(replay, tmp_path, sig)
+    done, out_csv, out_mcap = stopped_run(replay, tmp_path, sig)
     assert done.returncode == code, done.stderr[-800:]
     assert f"stopped by {signal.Signals(sig).name}" in done.stderr and "Traceback" not in done.stderr
     written = _csv_forces(out_csv)
     assert 12 <= len(written) < 198
     for sequential in (False, True):
-        assert _same(_mcap_forces(out_mcap, sequential), written)
+        assert _same(mcap_forces(out_mcap, sequential), written)
     with open(out_mcap, "rb") as fh:  # finalized: a summary with the statistics and chunk indexes
         summary = make_reader(fh).get_summary()
     assert summary is not None and summary.statistics is not None and summary.chunk_indexes
@@ -98,10 +64,10 @@ def test_sigterm_and_sigint_finalize_the_log(replay, tmp_path, sig, code):
 
 
 def test_kill_9_leaves_every_written_reading_to_the_library_readers(replay, tmp_path):
-    done, out_csv, out_mcap = _stopped_run(replay, tmp_path, signal.SIGKILL, after=20)
+    done, out_csv, out_mcap = stopped_run(replay, tmp_path, signal.SIGKILL, after=20)
     assert done.returncode == -signal.SIGKILL
     written = _csv_forces(out_csv)  # the CSV sink writes each reading just before the MCAP sink
     for sequential in (False, True):
-        got = _mcap_forces(out_mcap, sequential)
+        got = mcap_forces(out_mcap, sequential)
         assert len(written) - 1 <= len(got) <= len(written), (len(got), len(written))
         assert _same(got, written[:len(got)])
