@@ -4,6 +4,8 @@ shapes (odd ones included) and on real frames, and the whole gate's results over
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import cv2
 import numpy as np
 import pytest
@@ -303,3 +305,26 @@ def test_a_kernel_compiles_in_memory_when_no_cache_folder_is_writable(monkeypatc
     assert f(41) == 42
     assert "NUMBA_CACHE_DIR" in caplog.text and "no locator available" in caplog.text
     assert "contact gate kernels" in caplog.text
+
+
+def test_kernels_are_cached_in_the_users_cache_folder_not_beside_the_module(monkeypatch, tmp_path):
+    """The compiled forms go to XDG_CACHE_HOME/tactile_force/numba (an installed package's folder
+    is site-packages: what pip did not install stays there after an uninstall), and numba's own
+    setting is left as the user had it."""
+    import numba as nb
+    from tactile_force.edge import compiled
+
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    monkeypatch.setattr(nb.config, "CACHE_DIR", "")
+
+    def cached_in_the_users_folder(x):
+        return x + 2
+
+    f = compiled.compiled("a test kernel")(cached_in_the_users_folder)
+    assert f(40) == 42
+    assert nb.config.CACHE_DIR == ""
+    assert list((tmp_path / "tactile_force" / "numba").rglob("*cached_in_the_users_folder*.nbi"))
+    beside = Path(__file__).parent / "__pycache__"
+    assert not list(beside.glob("*cached_in_the_users_folder*")) if beside.is_dir() else True
+    monkeypatch.setattr(nb.config, "CACHE_DIR", str(tmp_path / "mine"))
+    assert compiled.cache_dir() == str(tmp_path / "mine")
