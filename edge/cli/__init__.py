@@ -3,6 +3,7 @@ and ``main(args) -> int``), imported only when its verb runs."""
 
 from __future__ import annotations
 
-from .main import COMMANDS, Interrupted, main
+from ..interrupts import Interrupted
+from .main import COMMANDS, main
 
 __all__ = ["COMMANDS", "Interrupted", "main"]

@@ -11,17 +11,18 @@ error), 130 interrupted by SIGINT (Ctrl-C), 143 by SIGTERM. Errors are one line;
 shows the traceback.
 
 Both signals raise :class:`Interrupted` (a ``KeyboardInterrupt``) in the main thread, so every
-verb unwinds through its clean-up (a half-made output is removed, :mod:`.atomic`); a verb that
-catches the interrupt itself still exits 130 / 143, never 0.
+verb unwinds through its clean-up (a half-made output is removed, :mod:`.atomic`); one that a
+library swallowed is raised again at the next checkpoint (:mod:`tactile_force.edge.interrupts`),
+and a verb that catches the interrupt itself still exits 130 / 143, never 0.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
-import signal
 import sys
-import threading
+
+from ..interrupts import CliSignals, Interrupted, raise_pending
 
 #: name -> (module, configure function, main function, one-line help)
 COMMANDS: dict[str, tuple[str, str, str, str]] = {
@@ -121,44 +122,6 @@ def flag_named(message: str, parser: argparse.ArgumentParser) -> str:
     return message
 
 
-class Interrupted(KeyboardInterrupt):
-    """SIGINT or SIGTERM arrived while a command ran; ``signum`` says which."""
-
-    def __init__(self, signum: int) -> None:
-        super().__init__(signal.Signals(signum).name)
-        self.signum = signum
-
-
-class _Signals:
-    """SIGINT and SIGTERM raise :class:`Interrupted` while a command runs (main thread only);
-    ``received`` remembers the first, so a verb that swallows it cannot exit 0."""
-
-    def __init__(self) -> None:
-        self.received: int | None = None
-        self._old: dict[int, object] = {}
-
-    def __enter__(self) -> _Signals:
-        if threading.current_thread() is threading.main_thread():
-            for sig in (signal.SIGINT, signal.SIGTERM):
-                self._old[sig] = signal.signal(sig, self._handle)
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        for sig, old in self._old.items():
-            signal.signal(sig, old)  # type: ignore[arg-type]
-        self._old.clear()
-
-    def _handle(self, signum: int, frame: object) -> None:
-        if self.received is None:
-            self.received = signum
-        raise Interrupted(signum)
-
-    def code(self, exc: BaseException | None = None) -> int:
-        """128 + the signal's number (130 SIGINT, 143 SIGTERM)."""
-        signum = exc.signum if isinstance(exc, Interrupted) else (self.received or signal.SIGINT)
-        return 128 + int(signum)
-
-
 def main(argv: list[str] | None = None) -> int:
     """Run one subcommand. Exit codes: 0 success, 1 a check failed, 2 bad input or usage,
     130 interrupted (SIGINT), 143 terminated (SIGTERM). ``--debug`` (anywhere, or
@@ -167,7 +130,7 @@ def main(argv: list[str] | None = None) -> int:
     The signal handlers are the first thing installed, before the verb's module is imported,
     so a Ctrl-C at any moment exits 130 with one line (in a process started as the CLI,
     :mod:`tactile_force.edge._cli_start` covers the moments before this function runs)."""
-    signals = _Signals()
+    signals = CliSignals()
     name = "(starting)"
     try:
         with signals:
@@ -184,7 +147,7 @@ def main(argv: list[str] | None = None) -> int:
         raise
 
 
-def _run(argv: list[str], signals: _Signals) -> int:
+def _run(argv: list[str], signals: CliSignals) -> int:
     """:func:`main` inside the signal handlers."""
     import os
 
@@ -217,6 +180,7 @@ def _run(argv: list[str], signals: _Signals) -> int:
         print(f"tactile-force {name}: needs the '{extra}' extra ({missing} is not installed). {_EXTRA_HINT[extra]}",
               file=sys.stderr)
         return 2
+    raise_pending()  # a signal whose exception a library swallowed while the verb's module loaded
     parser = argparse.ArgumentParser(prog=f"tactile-force {name}", description=help_line,
                                      epilog="--debug: show the traceback of an error")
     getattr(module, configure_name)(parser)
@@ -224,6 +188,7 @@ def _run(argv: list[str], signals: _Signals) -> int:
         args = parser.parse_args(argv[1:])
     except SystemExit as exc:  # usage errors (2) and --help (0), also when called in-process
         return exc.code if isinstance(exc.code, int) else 2
+    raise_pending()
     try:
         code = int(getattr(module, main_name)(args) or 0)
     except KeyboardInterrupt:
@@ -236,7 +201,10 @@ def _run(argv: list[str], signals: _Signals) -> int:
         code, message = _exit_code(exc)
         print(f"tactile-force {name}: {flag_named(message, parser)}", file=sys.stderr)
         return code
-    if signals.received is not None:  # the verb caught the interrupt itself: never a success
+    if signals.received is not None:  # the verb, or a library it called, caught the interrupt: never a success
+        signame = Interrupted(signals.received).args[0]
+        print(f"tactile-force {name}: interrupted by {signame}; code inside the command caught the signal, so it "
+              "ran on to its end", file=sys.stderr)
         return signals.code()
     return code
 

@@ -16,6 +16,7 @@ import threading
 from typing import TextIO
 
 from ..errors import CheckFailedError, SceneError, SourceError
+from ..interrupts import raise_pending
 from ..limits import FPS, FRAME_COUNT
 from ..reading import Flags, ForceReading
 from ..report.plots import nice_ticks  # noqa: F401 - re-exported (tests, older callers)
@@ -121,6 +122,7 @@ class SignalStop:
         self._old: dict[int, object] = {}
 
     def __enter__(self) -> SignalStop:
+        raise_pending()  # a signal a library swallowed while the scene was built: no run starts
         if threading.current_thread() is threading.main_thread():
             for sig in (signal.SIGTERM, signal.SIGINT):
                 self._old[sig] = signal.signal(sig, self._handle)

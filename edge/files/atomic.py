@@ -34,6 +34,7 @@ import threading
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
+from ..interrupts import raise_pending
 from .record import OUTPUT_MARK, Verification, remove_proved, verify, write_record
 
 __all__ = ["OUTPUT_MARK", "exchange", "foreign_files", "fsync_dir", "publish_folder", "rename_noreplace",
@@ -145,6 +146,7 @@ def publish_folder(tmp: Path, dest: Path, verb: str, *, force: bool = False, kno
     -------
     list[str] : what was kept beside ``dest`` (empty normally).
     """
+    raise_pending()  # a signal a library swallowed while the result was made: the result is not published
     fsync_dir(tmp)
     kept: list[str] = []
     with _signals_held():  # a Ctrl-C in here would leave the earlier folder half-removed at a hidden path
@@ -334,6 +336,7 @@ def staged_file(dest: str | os.PathLike) -> Iterator[Path]:
     try:
         try:
             yield tmp
+            raise_pending()
             umask = os.umask(0)
             os.umask(umask)
             os.chmod(tmp, 0o666 & ~umask)

@@ -7,6 +7,8 @@ import sys
 from collections.abc import Iterable, Iterator
 from typing import TypeVar
 
+from ..interrupts import raise_pending
+
 T = TypeVar("T")
 
 
@@ -41,6 +43,8 @@ def progress(items: Iterable[T], total: int | None = None, desc: str = "", enabl
     bar = tqdm(items, total=total, desc=desc or None, disable=not progress_enabled(enabled), file=sys.stderr,
                mininterval=0.1, dynamic_ncols=True, leave=True)
     try:
-        yield from bar
+        for item in bar:
+            raise_pending()  # a Ctrl-C a library swallowed stops long work at its next step
+            yield item
     finally:
         bar.close()
