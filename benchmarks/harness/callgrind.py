@@ -4,8 +4,8 @@ file (onnxruntime, OpenCV, numpy, OpenBLAS, the interpreter, ...) and, inside th
 memset / memcpy apart from the rest.
 
 Instruction counts do not depend on the machine's load or clock: the figure that moves only
-when the code does. Callgrind runs a program about 50x slower than natively where it instruments it (run_segments: only
-the segments the program marks).
+when the code does. Callgrind runs what it instruments about 50x slower than natively
+(:func:`run_segments`: only the segments the program marks).
 """
 
 from __future__ import annotations

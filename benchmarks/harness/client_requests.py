@@ -4,8 +4,8 @@ Valgrind recognises a request by a special instruction sequence the program exec
 when it runs natively); callgrind's requests start and stop its instrumentation, turn counting
 on and off and write the counts so far to a file named for the stage (``DUMP_STATS_AT``). The
 sequence is emitted here through numba (an LLVM inline-assembly call), for x86-64 only
-(:data:`SUPPORTED`): the instructions benchmark counts every stage of a bundle in one run where
-it can, and falls back to a run per stage elsewhere (benchmarks/instructions.py).
+(:data:`SUPPORTED`): the instructions benchmark counts every stage of a bundle in one run; on
+another architecture it says so and counts nothing (benchmarks/instructions.py).
 
 Run the program with ``--instr-atstart=no --collect-atstart=no``: its imports and set-up then run
 uninstrumented (several times faster) and count nothing; :class:`Segment` counts what runs

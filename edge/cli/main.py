@@ -10,19 +10,21 @@ other TactileForceError, an OSError on a path the user gave, a missing extra, an
 error), 130 interrupted by SIGINT (Ctrl-C), 143 by SIGTERM. Errors are one line; ``--debug``
 shows the traceback.
 
-Both signals raise :class:`Interrupted` (a ``KeyboardInterrupt``) in the main thread, so every
-verb unwinds through its clean-up (a half-made output is removed, :mod:`.atomic`); one that a
-library swallowed is raised again at the next checkpoint (:mod:`tactile_force.edge.interrupts`),
-and a verb that catches the interrupt itself still exits 130 / 143, never 0.
+Both signals raise :class:`~tactile_force.edge.interrupts.Interrupted` (a ``KeyboardInterrupt``)
+in the main thread, so every verb unwinds through its clean-up (a half-made output is removed,
+:mod:`.atomic`); one that a library swallowed is raised again at the next checkpoint
+(:mod:`tactile_force.edge.interrupts`), and a verb that catches the interrupt itself still exits
+130 / 143, never 0.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import signal
 import sys
 
-from ..interrupts import CliSignals, Interrupted, raise_pending
+from ..interrupts import CliSignals, raise_pending
 
 #: name -> (module, configure function, main function, one-line help)
 COMMANDS: dict[str, tuple[str, str, str, str]] = {
@@ -202,9 +204,8 @@ def _run(argv: list[str], signals: CliSignals) -> int:
         print(f"tactile-force {name}: {flag_named(message, parser)}", file=sys.stderr)
         return code
     if signals.received is not None:  # the verb, or a library it called, caught the interrupt: never a success
-        signame = Interrupted(signals.received).args[0]
-        print(f"tactile-force {name}: interrupted by {signame}; code inside the command caught the signal, so it "
-              "ran on to its end", file=sys.stderr)
+        print(f"tactile-force {name}: interrupted by {signal.Signals(signals.received).name}; code inside the "
+              "command caught the signal, so it ran on to its end", file=sys.stderr)
         return signals.code()
     return code
 

@@ -119,6 +119,7 @@ def tail_raised(off: list[float], on: list[float], alpha: float) -> bool:
     a = int(np.count_nonzero(np.asarray(off) >= top))
     b = int(np.count_nonzero(np.asarray(on) >= top))
     m, share = a + b, len(on) / len(both)
+    # the binomial tail by hand: scipy.stats would load (a few hundred ms) inside the reading loop
     chance = sum(math.comb(m, j) * share ** j * (1.0 - share) ** (m - j) for j in range(b, m + 1))
     return chance < alpha
 

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import importlib
 import signal
-import threading
 
 import pytest
 from tactile_force.edge.cli import Interrupted
@@ -17,9 +16,6 @@ from tactile_force.edge.interrupts import CliSignals, pending, raise_pending
 from tactile_force.edge.report.progress import progress
 
 from tests.conftest import REPO
-
-pytestmark = pytest.mark.skipif(threading.current_thread() is not threading.main_thread(),
-                                reason="signal handlers live in the main thread")
 
 
 def swallow(sig: int = signal.SIGINT) -> None:
