@@ -60,6 +60,7 @@ MOVED: dict[str, tuple[str, ...]] = {
 #: module (under tactile_force.) -> {old name: its new home, "module.name" under tactile_force.}
 RENAMED: dict[str, dict[str, str]] = {
     "edge.cli.bundle": {"files_outside": "edge.bundle.store.files_outside"},
+    "edge.cli.main": {"Interrupted": "edge.interrupts.Interrupted"},
     "edge": {
         **{n: f"edge.bundle.manifest.{n}" for n in ("DEPTH_VARIANTS", "PRECISIONS", "VARIANTS")},
         "sha256_file": "edge.bundle.store.sha256_file", "open_v4l2": "edge.sources.open_v4l2",
