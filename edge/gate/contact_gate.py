@@ -266,9 +266,8 @@ class ContactGate:
 
     # -- stages of update (separate so each can be timed) ---------------------------------
     def _fit_thumb(self, thumb: np.ndarray) -> None:
-        """The photometric fit (gain/offset) of the frame's thumbnail to the background's."""
-        np.copyto(self._thumb_f, thumb, casting="unsafe")
-        self._fit(final=self.options.trust)
+        """The photometric fit (gain/offset) of the frame's thumbnail (uint8) to the background's."""
+        self._fit(thumb, final=self.options.trust)
 
     def _changed(self, work: np.ndarray) -> None:
         """The changed-pixel mask into ``_mask`` and |frame - model| into ``_ad`` (``work`` is the
@@ -289,27 +288,16 @@ class ContactGate:
         assert self._bg_thumb is not None
         return self._fw.residual(self._bg_thumb, self._thumb_f, self._M, self._tmodel, self._inl, self._tol)
 
-    def _fit(self, final: bool = True) -> None:
-        """Per-channel gain/offset (frame = gain x background + offset), least squares over
-        the thumbnail cells that fit the previous model (all cells when fewer than half do:
-        after a sudden change); with ``final`` also ``_inl`` (cells that fit now) and
+    def _fit(self, thumb: np.ndarray, final: bool = True) -> None:
+        """Per-channel gain/offset (frame = gain x background + offset) of ``thumb`` (the frame's
+        thumbnail, uint8; into ``_thumb_f`` as float32), least squares over the thumbnail cells that
+        fit the previous model (all cells when fewer than half do: after a sudden change)
+        (:meth:`FrameWork.fit`); with ``final`` also ``_inl`` (cells that fit now) and
         ``_fit_frac`` for the judging."""
-        bg = self._bg_thumb
-        assert bg is not None
-        cells = self._inl.size
-        mask = self._inl if self._residual() >= cells // 2 else None
-        cv2.multiply(bg, self._thumb_f, dst=self._txy)
-        cv2.meanStdDev(bg, self._mx, self._sx, mask)
-        my = cv2.mean(self._thumb_f, mask=mask)
-        mxy = cv2.mean(self._txy, mask=mask)
-        M = self._M
-        for c, m, s in zip(range(3), self._mx[:, 0].tolist(), self._sx[:, 0].tolist()):
-            var = s ** 2
-            g = (mxy[c] - m * my[c]) / var if var > 1e-3 else 0.0
-            M[c, c] = g
-            M[c, 3] = my[c] - g * m
+        assert self._bg_thumb is not None
+        self._fw.fit(self._bg_thumb, thumb, self._thumb_f, self._M, self._tmodel, self._inl, self._tol)
         if final:
-            self._fit_frac = self._residual() / cells
+            self._fit_frac = self._residual() / self._inl.size
 
     def _judge(self, y: np.ndarray, work: np.ndarray, thumb: np.ndarray, frac: float,
                was_contact: bool) -> tuple[str, str]:
@@ -446,13 +434,10 @@ class ContactGate:
         self._thumb_f = np.empty((th, tw, 3), np.float32)
         self._tmodel = np.empty((th, tw, 3), np.float32)
         self._tr = np.empty((th, tw, 3), np.float32)
-        self._txy = np.empty((th, tw, 3), np.float32)
         self._inl = np.full((th, tw), 255, np.uint8)
         self._tcmp = np.empty((th, tw, 3), np.uint8)  # the occlusion check's buffers
         self._tdark = np.empty((th, tw), np.uint8)
         self._tol = np.float32(o.fit_tolerance)  # inRange's bound on a float32 image: the float32 nearest
-        self._mx = np.empty((3, 1), np.float64)  # meanStdDev outputs, reused
-        self._sx = np.empty((3, 1), np.float64)
         self._y = self._thumb_f.reshape(-1, 3)  # a view: the thumbnail's cells x B, G, R
         self._fit_frac = 1.0
         self._blob_finder = BlobFinder(o, self._mask, self._ad, fw.contact_stats)

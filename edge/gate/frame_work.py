@@ -4,8 +4,9 @@
 frame needs before the judging: the one downscale (edge/gate/reduce.py's box average), the 3 x 3 blur
 of the reduced image (``work``), its thumbnail, the pixel-noise level and the changed-pixel mask with
 |frame - model| (one kernel call for the first four), and for the judging the thumbnail's photometric
-fit (:meth:`FrameWork.residual`) and the contact blob's area and deformation
-(:meth:`FrameWork.contact_stats`). The common case (a power-of-two factor dividing the frame, blur 3) runs the
+fit (:meth:`FrameWork.fit`: one kernel call for its residual and sums over the cells that fit; every
+cell, after a sudden change, keeps OpenCV's means) and check (:meth:`FrameWork.residual`) and the contact
+blob's area and deformation (:meth:`FrameWork.contact_stats`). The common case (a power-of-two factor dividing the frame, blur 3) runs the
 compiled kernels of edge/gate/kernels.py (numba, loaded on the first frame; the first run of a
 Python environment compiles them, later runs load them from numba's cache); they equal the
 OpenCV calls they replace bit for bit (tests/edge/gate/test_kernels.py holds those calls as the
@@ -17,6 +18,7 @@ from __future__ import annotations
 
 import functools
 import importlib
+import math
 from types import ModuleType
 
 import cv2
@@ -122,6 +124,9 @@ class FrameWork:
         self._thumb2 = self.thumb.reshape(th, tw * 3)
         self._no_thumb = np.empty((0, tw * 3), np.uint8)
         self._thumb_made = False  # the last reduce made the thumbnail of ``work``
+        self._fit_sums = np.zeros(13, np.float64)  # the fit's sums (kernels.fit_sums)
+        self._moments: list[tuple[float, float, float, float]] = []
+        self._mx, self._sx = np.empty((3, 1), np.float64), np.empty((3, 1), np.float64)  # meanStdDev's
 
     def reduce(self, frame: np.ndarray, blur: bool = False, noise: bool = False) -> None:
         """The frame's one downscale into ``small``; with ``blur`` also its blur into ``work``, with
@@ -213,6 +218,44 @@ class FrameWork:
         ``inl`` 255 where |``thumb`` - ``tmodel``| <= ``tol`` on every channel, else 0; returns the count
         of 255 cells. Thumbnails: rows x cols x 3 float32; ``inl`` rows x cols uint8."""
         return int(self._k.residual(bg_thumb, model, thumb, tmodel, inl, tol))
+
+    def fit(self, bg_thumb: np.ndarray, thumb: np.ndarray, y: np.ndarray, model: np.ndarray, tmodel: np.ndarray,
+            inl: np.ndarray, tol: np.float32) -> None:
+        """The photometric model fitted: per channel the gain and offset of ``y`` = gain x ``bg_thumb`` +
+        offset, least squares over the cells that fit the current ``model`` (:meth:`residual`; every
+        cell when fewer than half do: after a sudden change), written into ``model`` (the 3 x 4 float32
+        matrix: gain on the diagonal, offset in the last column). ``y`` = ``thumb`` (rows x cols x 3
+        uint8) as float32; ``tmodel`` and ``inl`` are left as :meth:`residual` made them for the
+        current model. The means and deviations as ``cv2.meanStdDev`` / ``cv2.mean`` make them (sums in
+        float64 cell by cell, times 1 / count), the gain from them as the gate always made it."""
+        if self._k.fit_sums(bg_thumb, thumb, y, model, tmodel, inl, tol, self._fit_sums) >= inl.size // 2:
+            self._moments = self._masked_moments()
+        else:  # every cell: OpenCV's own means (its mean without a mask adds in another order)
+            mx, sx = cv2.meanStdDev(bg_thumb, self._mx, self._sx)
+            means_y, means_xy = cv2.mean(y), cv2.mean(cv2.multiply(bg_thumb, y))
+            self._moments = [(float(mx[c, 0]), float(sx[c, 0]), means_y[c], means_xy[c]) for c in range(3)]
+        for c, (m, sd, my, mxy) in enumerate(self._moments):
+            var = sd ** 2  # pow, not sd * sd: they differ in the last bit now and then
+            g = (mxy - m * my) / var if var > 1e-3 else 0.0
+            model[c, c] = g
+            model[c, 3] = my - g * m
+
+    def fit_moments(self) -> list[tuple[float, float, float, float]]:
+        """Per channel B, G, R the last :meth:`fit`'s (mean, standard deviation) of the background
+        thumbnail, mean of the frame's and mean of their float32 product over the cells it used
+        (grey levels): what ``cv2.meanStdDev`` and ``cv2.mean`` give, to the bit."""
+        return self._moments
+
+    def _masked_moments(self) -> list[tuple[float, float, float, float]]:
+        """The moments from the kernel's sums over the cells that fit (float64 cell by cell, times
+        1 / count; the deviation the square root of mean square - mean squared, as OpenCV)."""
+        s = self._fit_sums.tolist()
+        scale = 1.0 / s[12]
+        out = []
+        for c in range(3):
+            m = s[c] * scale
+            out.append((m, math.sqrt(max(s[3 + c] * scale - m * m, 0.0)), s[6 + c] * scale, s[9 + c] * scale))
+        return out
 
     def contact_stats(self) -> tuple[int, float]:
         """(area: the nonzero pixels of ``mask``, deformation: the largest per-channel mean of ``ad``

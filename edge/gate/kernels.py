@@ -22,6 +22,9 @@ calls as the oracle):
   rounding does), ``absdiff`` and the mask 255 where any channel exceeds the integer bound.
 - :func:`residual`: the thumbnail's photometric fit (``cv2.transform`` by the diagonal model,
   ``absdiff``, ``inRange`` within the tolerance, ``countNonZero``).
+- :func:`fit_sums`: the sums the thumbnail's photometric fit needs (``cv2.meanStdDev`` and
+  ``cv2.mean`` of the background, the frame and their product over the cells that fit), after
+  :func:`residual` against the current model.
 - :func:`masked_sums`: a contact mask's area and the sums of |frame - model| over it
   (``countNonZero`` and ``cv2.mean`` with the mask, whose sums are integers).
 """
@@ -297,19 +300,54 @@ def residual(bg, model, thumb, tmodel, inl, tol):  # pragma: no cover - compiled
 def masked_sums(mask, ad, sums):  # pragma: no cover - compiled
     """The count of nonzero pixels of ``mask`` (h x w uint8) and into ``sums`` (3 int64) the
     per-channel sums of ``ad`` (h x w x 3 uint8) over them: ``cv2.countNonZero`` and the sums
-    ``cv2.mean(ad, mask)`` divides by that count."""
+    ``cv2.mean(ad, mask)`` divides by that count. Without branches: each value times 0 or 1."""
     m = mask.reshape(mask.size)
     a = ad.reshape(ad.size)
-    count = 0
-    s0 = s1 = s2 = 0
-    for p in range(m.shape[0]):
-        if m[p] != 0:
-            count += 1
-            s0 += a[_C * p]
-            s1 += a[_C * p + 1]
-            s2 += a[_C * p + 2]
+    c3 = _U(_C)
+    count = s0 = s1 = s2 = np.int64(0)
+    for p in range(_U(m.shape[0])):
+        on = np.int64(m[p] != 0)
+        count += on
+        s0 += on * np.int64(a[c3 * p])
+        s1 += on * np.int64(a[c3 * p + _U(1)])
+        s2 += on * np.int64(a[c3 * p + _U(2)])
     sums[0], sums[1], sums[2] = s0, s1, s2
     return count
+
+
+@_jit
+def fit_sums(bg, thumb, y, model, tmodel, inl, tol, sums):  # pragma: no cover - compiled
+    """The sums of the thumbnail's photometric fit: ``y`` = ``thumb`` as float32 (rows x cols x 3;
+    ``thumb`` uint8), the fit of :func:`residual` to the current ``model`` into ``tmodel`` and
+    ``inl``; then, when at least half the cells fit, over those cells per channel c: ``sums[c]`` =
+    the sum of ``bg``, ``sums[3 + c]`` of its squares, ``sums[6 + c]`` of ``y``, ``sums[9 + c]`` of
+    the float32 product ``bg`` x ``y``, in float64 cell by cell (as ``cv2.meanStdDev`` and
+    ``cv2.mean`` with a mask add them), ``sums[12]`` the count (else ``sums`` is left as it was).
+    Returns the count of cells that fit the current model."""
+    yf = y.reshape(y.size)
+    t = thumb.reshape(thumb.size)
+    for j in range(yf.shape[0]):
+        yf[j] = np.float32(t[j])
+    fit = residual(bg, model, y, tmodel, inl, tol)
+    if fit < inl.size // 2:
+        return fit
+    b = bg.reshape(bg.size)
+    mk = inl.reshape(inl.size)
+    for k in range(13):
+        sums[k] = 0.0
+    for x in range(mk.shape[0]):
+        if mk[x] == 0:
+            continue
+        sums[12] += 1.0
+        for ch in range(_C):
+            v = b[_C * x + ch]
+            w = yf[_C * x + ch]
+            vd = np.float64(v)
+            sums[ch] += vd
+            sums[3 + ch] += vd * vd
+            sums[6 + ch] += np.float64(w)
+            sums[9 + ch] += np.float64(v * w)
+    return fit
 
 
 @_jit
@@ -341,3 +379,5 @@ def warm() -> None:
     thumb = np.zeros((2, 2, 3), np.float32)
     residual(thumb, model, thumb, thumb.copy(), np.zeros((2, 2), np.uint8), np.float32(8.0))
     masked_sums(np.zeros((2, 2), np.uint8), np.zeros((2, 2, 3), np.uint8), sums)
+    fit_sums(thumb, np.zeros((2, 2, 3), np.uint8), thumb.copy(), model, thumb.copy(), np.zeros((2, 2), np.uint8),
+             np.float32(8.0), np.zeros(13))

@@ -35,6 +35,24 @@ def changed_cv(work: np.ndarray, bg: np.ndarray, model: np.ndarray, threshold: f
     return ad, mask
 
 
+def fit_cv(bg_thumb: np.ndarray, thumb: np.ndarray, model: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
+    """The gate's photometric fit before the kernel: (the new 3 x 4 model, the float32 thumbnail); the
+    least squares over the cells that fit ``model`` when at least half do, else over every cell."""
+    y = thumb.astype(np.float32)
+    _, inl, n = residual_cv(bg_thumb, y, model, tol)
+    mask = inl if n >= inl.size // 2 else None
+    mx, sx = cv2.meanStdDev(bg_thumb, mask=mask)
+    my = cv2.mean(y, mask=mask)
+    mxy = cv2.mean(cv2.multiply(bg_thumb, y), mask=mask)
+    out = model.copy()
+    for c, m, s in zip(range(3), mx[:, 0].tolist(), sx[:, 0].tolist()):
+        var = s ** 2
+        g = (mxy[c] - m * my[c]) / var if var > 1e-3 else 0.0
+        out[c, c] = g
+        out[c, 3] = my[c] - g * m
+    return out, y
+
+
 def residual_cv(bg_thumb: np.ndarray, thumb: np.ndarray, model: np.ndarray, tol: float
                 ) -> tuple[np.ndarray, np.ndarray, int]:
     """(transform(bg_thumb, model), inRange(|thumb - it|, 0, tol) on every channel, its count): the
@@ -75,6 +93,13 @@ class OracleFrameWork(FrameWork):
         np.copyto(tmodel, m)
         np.copyto(inl, i)
         return n
+
+    def fit(self, bg_thumb: np.ndarray, thumb: np.ndarray, y: np.ndarray, model: np.ndarray, tmodel: np.ndarray,
+            inl: np.ndarray, tol: np.float32) -> None:
+        self.residual(bg_thumb, thumb.astype(np.float32), model, tmodel, inl, tol)
+        new, yf = fit_cv(bg_thumb, thumb, model, float(tol))
+        np.copyto(model, new)
+        np.copyto(y, yf)
 
     def contact_stats(self) -> tuple[int, float]:
         return cv2.countNonZero(self.mask), float(max(cv2.mean(self.ad, mask=self.mask)[:3]))

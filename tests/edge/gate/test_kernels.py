@@ -16,7 +16,7 @@ from tactile_force.edge.gate import kernels as K
 from tactile_force.edge.gate.frame_work import FrameWork
 
 from tests.conftest import shared_data
-from tests.edge.gate.oracle import OracleGate, blur_cv, changed_cv, noise_cv, reduce_cv, residual_cv
+from tests.edge.gate.oracle import OracleGate, blur_cv, changed_cv, fit_cv, noise_cv, reduce_cv, residual_cv
 
 _SETTINGS = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
@@ -129,6 +129,43 @@ def test_thumbnail_fit_equals_opencv(rows, cols, seed, tol, near):
     n = fw.residual(bg, thumb, model, tmodel, inl, np.float32(tol))
     assert n == ref_n and np.array_equal(inl, ref_inl)
     assert np.array_equal(tmodel.view(np.uint32), ref_model.view(np.uint32))  # the same float32 bits
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(rows=st.integers(2, 17), cols=st.integers(2, 23), seed=st.integers(0, 2**31),
+       tol=st.sampled_from([8.0, 2.7, 40.0, 1e-7]), scene=st.sampled_from(["near", "changed", "dark", "flat"]))
+def test_photometric_fit_equals_opencv(rows, cols, seed, tol, scene):
+    """The fitted gain and offset, to the float32 bit, and the float32 thumbnail: over the cells
+    that fit (``near``: most do), over every cell (``changed``: few do), with a background that
+    decayed towards 0 in places (``dark``: values across 40 binades, where the order of the sums
+    shows) and with a channel of no variance (``flat``: the gain is 0)."""
+    rng = np.random.default_rng(seed)
+    bg = (rng.random((rows, cols, 3)) * 250 + 1).astype(np.float32)
+    if scene == "dark":
+        bg *= (rng.random((rows, cols, 3)) < 0.3) * np.float32(2.0) ** -rng.integers(0, 40, (rows, cols, 3))
+        bg = bg.astype(np.float32)
+    if scene == "flat":
+        bg[..., 1] = np.float32(rng.random() * 200)
+    model = np.zeros((3, 4), np.float32)
+    model[[0, 1, 2], [0, 1, 2]] = rng.random(3) * 0.4 + 0.8
+    model[:, 3] = rng.random(3) * 10 - 5
+    noise = 2.0 if scene != "changed" else 60.0
+    thumb = np.clip(bg * model.diagonal() + model[:, 3] + rng.normal(0, noise, bg.shape), 0, 255).astype(np.uint8)
+    ref_model, ref_y = fit_cv(bg, thumb, model, tol)
+    fw = FrameWork((4 * rows, 4 * cols, 3), 4, 3, 10.0)
+    y, tmodel, inl = np.empty_like(bg), np.empty_like(bg), np.empty((rows, cols), np.uint8)
+    got = model.copy()
+    fw.fit(bg, thumb, y, got, tmodel, inl, np.float32(tol))
+    assert np.array_equal(y, ref_y)
+    assert np.array_equal(got.view(np.uint32), ref_model.view(np.uint32))  # the same float32 bits
+    # the float64 moments too (the float32 model hides their last bits)
+    _, ref_inl, n = residual_cv(bg, ref_y, model, tol)
+    mask = ref_inl if n >= ref_inl.size // 2 else None
+    mx, sx = cv2.meanStdDev(bg, mask=mask)
+    my, mxy = cv2.mean(ref_y, mask=mask), cv2.mean(cv2.multiply(bg, ref_y), mask=mask)
+    assert fw.fit_moments() == [(mx[c, 0], sx[c, 0], my[c], mxy[c]) for c in range(3)]
+    ref_tmodel, ref_inl, _ = residual_cv(bg, ref_y, model, tol)  # left as the residual of the model given
+    assert np.array_equal(inl, ref_inl) and np.array_equal(tmodel.view(np.uint32), ref_tmodel.view(np.uint32))
 
 
 @_SETTINGS
