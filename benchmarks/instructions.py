@@ -48,8 +48,10 @@ from .harness.paths import repo_root
 #: Shipped bundles measured: (folder under edge/models, label).
 VARIANTS: tuple[tuple[str, str], ...] = (("default", "RGBmod"), ("d", "D"), ("rgbmod_d", "RGBmod+D"),
                                          ("fast", "RGBmod fast"))
-#: What a worker run counts, each mode N times.
-MODES = ("runtime", "bare", "gate", "depth")
+#: What a worker run counts, each mode N times ('downscale': the gate's one downscale of the frame alone,
+#: the network's input, by the gate's kernel; 'downscale_opencv': the same values by OpenCV's INTER_AREA
+#: x2 steps; the floors of the page).
+MODES = ("runtime", "bare", "gate", "depth", "downscale", "downscale_opencv")
 FRAMES = 16  # virtual DIGIT frames in contact, cycled
 WARMUP = 5  # runs of every mode before the measured ones, in every worker run
 READINGS = 200  # measured readings per run (--quick: 20)
@@ -71,6 +73,8 @@ class _Setup:
         from tactile_force.edge import ContactGate, load_bundle
         from tactile_force.edge.bundle.manifest import InputKind
         from tactile_force.edge.frames import TimedFrame
+        from tactile_force.edge.gate import GateOptions
+        from tactile_force.edge.gate.frame_work import FrameWork
         from tactile_force.edge.model.onnx_model import OnnxForceModel, session_options
         from tactile_force.edge.runtime import ForceRuntime, RuntimeOptions, Sensor
         from tactile_force.edge.runtime.depth_factory import build_depth_stage
@@ -92,6 +96,8 @@ class _Setup:
                                     RuntimeOptions(deadline_ms=1e9, prewarm=False))
         # the gate step alone (its own gate), and the gate's reduced images and masks
         self.gate_step = GateStep("gate", _gate(background))
+        o = GateOptions()  # the gate's image work (its buffers), for the downscale alone
+        self.frame_work = FrameWork(rgb[0].shape, o.downscale, o.blur, o.threshold)
         ref_step = GateStep("ref", _gate(background))
         self.depth = build_depth_stage(None, manifest) if manifest.input(InputKind.DEPTH) is not None else None
         reduced, masks, depth = [], [], []
@@ -130,6 +136,10 @@ class _Setup:
             self.gate_step.run(self.tfs[k])
         elif mode == "depth" and self.depth is not None:
             self.depth.process(self.reduced[k], self.masks[k], checked=True)
+        elif mode == "downscale":
+            self.frame_work.reduce(self.tfs[k].frame)
+        elif mode == "downscale_opencv":
+            self.frame_work.reduce_without_kernels(self.tfs[k].frame)
 
 
 def _gate(background: np.ndarray):
@@ -303,6 +313,37 @@ def _fast_ratio(variants: list[VariantCounts]) -> float | None:
     return by["RGBmod fast"].counts["runtime"].total / by["RGBmod"].counts["runtime"].total
 
 
+def _floors(rec: Record) -> list[str]:
+    """The page's floors section: per bundle with a goal, what the goal leaves around the bare call
+    against what the reading does there that no exact implementation of today's checks avoids."""
+    from .harness.stats import markdown_table
+
+    rows = []
+    for v in rec.variants:
+        c, st = v.counts, stages(v)
+        if v.label not in GOALS or "downscale" not in c or "gate" not in st:
+            continue
+        budget = (GOALS[v.label] - 1.0) * st["bare"]
+        down = c["downscale"].total
+        left = budget - down - st["glue + judge"]
+        rest = st["gate"] - down + st.get("depth", 0.0)
+        cv = f" (OpenCV's x2 steps: {_m(c['downscale_opencv'].total)})" if "downscale_opencv" in c else ""
+        rows.append([v.label, f"{GOALS[v.label]:.2f}x", _m(budget), _m(down) + cv, _m(st["glue + judge"]),
+                     _m(left), _m(rest), f"{rest / left:.1f}x" if left > 0 else "no room"])
+    if not rows:
+        return []
+    return ["## What a goal leaves for the checks (M per reading)", "",
+            "'room around the bare call': (goal - 1) x the bare call. 'the one downscale': the gate's reduction of "
+            "the frame alone, which the network's input is, bit for bit (the gate's kernel; OpenCV's INTER_AREA x2 "
+            "steps give the same values for the count in brackets). 'left for the checks': the room less the "
+            "downscale and the runtime's glue + judge. 'the checks cost': the gate step beyond its downscale (frame "
+            "contract, exposure, blur, thumbnail, pixel noise, photometric fit, changed mask, blobs, judging) and the "
+            "depth stage. Every check is one compiled pass or OpenCV call per frame; the goal holds only where "
+            "'checks / left' is at most 1.", "",
+            markdown_table(["bundle", "goal", "room around the bare call", "the one downscale", "glue + judge",
+                            "left for the checks", "the checks cost", "checks / left"], rows), ""]
+
+
 def page(rec: Record) -> str:
     """instructions.md from the record (with before / after tables when it holds a before)."""
     from .harness.stats import markdown_table
@@ -357,6 +398,7 @@ def page(rec: Record) -> str:
                                  f"{100 * (sa[k] / sb[k] - 1):+.0f} %" if sb[k] else "-"])
         out += ["## Per stage, before and after (M per reading)", "",
                 markdown_table(["bundle", "stage", "before", "after", "change", "change %"], rows), ""]
+    out += _floors(rec)
     groups = callgrind.GROUP_NAMES
     out += ["## Where the instructions ran (M per reading)", "",
             "By object file (OpenCV: cv2 and libopencv*; numpy: its extension modules; the interpreter: "

@@ -85,7 +85,7 @@ def test_a_runtime_reading_counts_at_least_its_bare_call(tmp_path: Path) -> None
     (v,) = rec["variants"]
     assert v["label"] == "RGBmod"
     counts = v["counts"]
-    assert {"runtime", "bare", "gate"} <= set(counts)
+    assert {"runtime", "bare", "gate", "downscale", "downscale_opencv"} <= set(counts)
     for c in counts.values():
         assert set(c["groups"]) == set(callgrind.GROUP_NAMES)
     assert counts["bare"]["total"] > 1e5  # a graph call is work
@@ -93,6 +93,8 @@ def test_a_runtime_reading_counts_at_least_its_bare_call(tmp_path: Path) -> None
     assert counts["gate"]["groups"]["OpenCV"] > 0
     assert counts["gate"]["groups"]["onnxruntime"] == 0  # the gate's segment holds no model call
     assert counts["gate"]["total"] < 0.5 * counts["runtime"]["total"]
+    assert 0 < counts["downscale"]["total"] < counts["gate"]["total"]  # a part of the gate step
+    assert counts["downscale"]["groups"]["OpenCV"] == 0 < counts["downscale_opencv"]["groups"]["OpenCV"]
     assert counts["runtime"]["groups"]["onnxruntime"] >= 0.9 * counts["bare"]["groups"]["onnxruntime"]
     assert v["ratio"] == pytest.approx(counts["runtime"]["total"] / counts["bare"]["total"])
     page = (out / "instructions.md").read_text()
@@ -113,3 +115,16 @@ def test_page_with_a_before_record_shows_the_goals_and_each_stage_before_and_aft
     assert "| RGBmod: runtime / bare graph <= 1.15x | 1.41x | 1.14x | met |" in page
     assert "| RGBmod | gate | 1.300 | 0.400 | -0.900 | -69 % |" in page
     assert "Some CPU" in page and "abc1234" in page and "0000000" in page and "a note on the counts" in page
+    assert "What a goal leaves" not in page  # no downscale counted: no floors
+
+
+def test_the_floors_compare_what_a_goal_leaves_with_what_the_checks_cost() -> None:
+    g = dict.fromkeys(callgrind.GROUP_NAMES, 0.0)
+    counts = {k: instructions.Count(t, g) for k, t in (("runtime", 4.6e6), ("bare", 4.0e6), ("gate", 0.5e6),
+                                                         ("downscale", 0.2e6), ("downscale_opencv", 0.4e6))}
+    v = instructions.VariantCounts("default", "RGBmod", counts, 4.6 / 4.0)
+    rec = instructions.Record("cmd", "abc1234", "Some CPU", "a machine", 200, 16, 5, "valgrind-3.19.0", [v], 1.0)
+    page = instructions.page(rec)
+    # room 0.15 x 4.0 = 0.6; glue 4.6 - 4.0 - 0.5 = 0.1; left 0.6 - 0.2 - 0.1 = 0.3; checks 0.5 - 0.2 = 0.3
+    assert ("| RGBmod | 1.15x | 0.600 | 0.200 (OpenCV's x2 steps: 0.400) | 0.100 | 0.300 | 0.300 | 1.0x |"
+            in page)
