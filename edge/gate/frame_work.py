@@ -5,13 +5,13 @@ frame needs before the judging: the one downscale (edge/gate/reduce.py's box ave
 of the reduced image (``work``), its thumbnail, the pixel-noise level and the changed-pixel mask with
 |frame - model| (one kernel call for the first four), and for the judging the thumbnail's photometric
 fit (:meth:`FrameWork.fit`: one kernel call for its residual and sums over the cells that fit; every
-cell, after a sudden change, keeps OpenCV's means) and check (:meth:`FrameWork.residual`) and the contact
-blob's area and deformation (:meth:`FrameWork.contact_stats`). The common case (a power-of-two factor dividing the frame, blur 3) runs the
-compiled kernels of edge/gate/kernels.py (numba, loaded on the first frame; the first run of a
-Python environment compiles them, later runs load them from numba's cache); they equal the
-OpenCV calls they replace bit for bit (tests/edge/gate/test_kernels.py holds those calls as the
-oracle). A factor that is not a power of two, one that does not divide the frame, another blur or
-a working image under 2 x 2 pixels keeps the OpenCV calls below.
+cell, after a sudden change, keeps OpenCV's means) and check (:meth:`FrameWork.residual`) and the
+contact blob's area and deformation (:meth:`FrameWork.contact_stats`). The common case (a power-of-two
+factor dividing the frame, blur 3) runs the compiled kernels of edge/gate/kernels.py (numba, loaded on
+the first frame; the first run of a Python environment compiles them, later runs load them from
+numba's cache); they equal the OpenCV calls they replace bit for bit (tests/edge/gate/test_kernels.py
+holds those calls as the oracle). A factor that is not a power of two, one that does not divide the
+frame, another blur or a working image under 2 x 2 pixels keeps the OpenCV calls below.
 """
 
 from __future__ import annotations
