@@ -266,8 +266,15 @@ class ContactGate:
 
     # -- stages of update (separate so each can be timed) ---------------------------------
     def _fit_thumb(self, thumb: np.ndarray) -> None:
-        """The photometric fit (gain/offset) of the frame's thumbnail (uint8) to the background's."""
-        self._fit(thumb, final=self.options.trust)
+        """Per-channel gain/offset (frame = gain x background + offset) of ``thumb`` (the frame's
+        thumbnail, uint8; into ``_thumb_f`` as float32), least squares over the thumbnail cells that
+        fit the previous model (all cells when fewer than half do: after a sudden change)
+        (:meth:`FrameWork.fit`); with ``trust`` also ``_inl`` (cells that fit now) and ``_fit_frac``
+        for the judging."""
+        assert self._bg_thumb is not None
+        self._fw.fit(self._bg_thumb, thumb, self._thumb_f, self._M, self._tmodel, self._inl, self._tol)
+        if self.options.trust:
+            self._fit_frac = self._residual() / self._inl.size
 
     def _changed(self, work: np.ndarray) -> None:
         """The changed-pixel mask into ``_mask`` and |frame - model| into ``_ad`` (``work`` is the
@@ -287,17 +294,6 @@ class ContactGate:
         ``fit_tolerance`` of it on every channel into ``_inl``; returns their count."""
         assert self._bg_thumb is not None
         return self._fw.residual(self._bg_thumb, self._thumb_f, self._M, self._tmodel, self._inl, self._tol)
-
-    def _fit(self, thumb: np.ndarray, final: bool = True) -> None:
-        """Per-channel gain/offset (frame = gain x background + offset) of ``thumb`` (the frame's
-        thumbnail, uint8; into ``_thumb_f`` as float32), least squares over the thumbnail cells that
-        fit the previous model (all cells when fewer than half do: after a sudden change)
-        (:meth:`FrameWork.fit`); with ``final`` also ``_inl`` (cells that fit now) and
-        ``_fit_frac`` for the judging."""
-        assert self._bg_thumb is not None
-        self._fw.fit(self._bg_thumb, thumb, self._thumb_f, self._M, self._tmodel, self._inl, self._tol)
-        if final:
-            self._fit_frac = self._residual() / self._inl.size
 
     def _judge(self, y: np.ndarray, work: np.ndarray, thumb: np.ndarray, frac: float,
                was_contact: bool) -> tuple[str, str]:

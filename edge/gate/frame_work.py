@@ -126,7 +126,6 @@ class FrameWork:
         self._thumb_made = False  # the last reduce made the thumbnail of ``work``
         self._fit_sums = np.zeros(13, np.float64)  # the fit's sums (kernels.fit_sums)
         self._moments: list[tuple[float, float, float, float]] = []
-        self._mx, self._sx = np.empty((3, 1), np.float64), np.empty((3, 1), np.float64)  # meanStdDev's
 
     def reduce(self, frame: np.ndarray, blur: bool = False, noise: bool = False) -> None:
         """The frame's one downscale into ``small``; with ``blur`` also its blur into ``work``, with
@@ -231,7 +230,7 @@ class FrameWork:
         if self._k.fit_sums(bg_thumb, thumb, y, model, tmodel, inl, tol, self._fit_sums) >= inl.size // 2:
             self._moments = self._masked_moments()
         else:  # every cell: OpenCV's own means (its mean without a mask adds in another order)
-            mx, sx = cv2.meanStdDev(bg_thumb, self._mx, self._sx)
+            mx, sx = cv2.meanStdDev(bg_thumb)
             means_y, means_xy = cv2.mean(y), cv2.mean(cv2.multiply(bg_thumb, y))
             self._moments = [(float(mx[c, 0]), float(sx[c, 0]), means_y[c], means_xy[c]) for c in range(3)]
         for c, (m, sd, my, mxy) in enumerate(self._moments):
