@@ -1,4 +1,5 @@
-"""Print the core dependencies pinned at their declared minimums (``name>=X`` -> ``name==X``).
+"""Print the core dependencies and the runtime extras' (``fast``: numba, ``paper``: scipy) pinned at their
+declared minimums (``name>=X`` -> ``name==X``).
 
 A dependency with a ``python_version < 'X.Y'`` marker is printed only where it applies.
 """
@@ -9,7 +10,8 @@ import sys
 import tomllib
 
 project = tomllib.loads(pathlib.Path(__file__).resolve().parents[1].joinpath("pyproject.toml").read_text())["project"]
-for dep in project["dependencies"]:
+RUNTIME_EXTRAS = ("fast", "paper")  # the robot side's optional paths: their minimums are tested too
+for dep in project["dependencies"] + [d for e in RUNTIME_EXTRAS for d in project["optional-dependencies"][e]]:
     spec, _, marker = dep.partition(";")
     marker = marker.strip()
     if marker:

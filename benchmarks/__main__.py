@@ -9,6 +9,7 @@
     python -m benchmarks cadence --out docs/benchmarks    # latency at 60 fps, 1 and 8 sensors -> cadence.md
     python -m benchmarks error --out docs/benchmarks      # shipped bundles: error vs run time -> error_vs_runtime.md
     python -m benchmarks instructions --out docs/benchmarks  # instructions per reading (callgrind) -> instructions.md
+    python -m benchmarks startup --out docs/benchmarks    # process start -> first reading, per install -> startup.md
 
 Results go to ``--out DIR`` (default out/benchmarks, git-ignored); docs/benchmarks only
 when it is named. Every page states the command, the commit of the code that measured, the
@@ -35,6 +36,9 @@ os.environ.setdefault("KMP_BLOCKTIME", "0")
 
 for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_v, "1")
+
+from tactile_force.edge.cli.args import within  # noqa: E402
+from tactile_force.edge.limits import COUNT, READINGS  # noqa: E402
 
 from .harness.paths import repo_root  # noqa: E402
 
@@ -73,6 +77,31 @@ def is_docs(out: Path) -> bool:
     return True
 
 
+def _problem(args: argparse.Namespace) -> str:
+    """What is wrong with the arguments, one line ('' when nothing), before any work: ``--out`` a
+    folder (made if missing) that is not a file, ``--before`` an instructions.json of the expected
+    shape, each ``--python`` an interpreter."""
+    out: Path = args.out
+    if out.exists() and not out.is_dir():
+        return f"--out {out}: is a file; expected a folder for the pages (made if missing)"
+    parent = next((p for p in (out, *out.parents) if p.exists()), None)
+    if parent is not None and not os.access(parent, os.W_OK | os.X_OK):
+        return f"--out {out}: {parent} is not writable"
+    if args.before is not None:
+        if args.what != "instructions":
+            return "--before: only 'instructions' takes an earlier record"
+        from .instructions import read_before
+
+        try:
+            read_before(args.before)
+        except ValueError as exc:
+            return f"--before {args.before}: {exc}"
+    for py in args.python or ():
+        if not (os.path.isfile(py) and os.access(py, os.X_OK)):
+            return f"--python {py}: not an executable file; expected a Python interpreter (e.g. .venv/bin/python)"
+    return ""
+
+
 def main(argv: list[str] | None = None) -> int:
     """``python -m benchmarks``; the loggers it quietens are restored when it returns. Exit 2
     with one line for what the benchmarks cannot find or were given wrong."""
@@ -94,22 +123,29 @@ def _main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m benchmarks", description=(__doc__ or "").split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__)
     ap.add_argument("what", nargs="?", choices=(*TASKS, "robustness", "trust", "intervals", "cadence", "error",
-                                               "instructions"),
+                                               "instructions", "startup"),
                     help="which page to make; 'robustness', 'trust', 'intervals', 'cadence', 'error' and "
                          "'instructions' are not part of 'all'")
-    ap.add_argument("--rounds", type=int, default=3,
+    ap.add_argument("--rounds", type=within(int, COUNT), default=3,
                     help="cadence: rounds of interleaved phases (default 3; --quick: 1)")
-    ap.add_argument("--bench-runs", type=int, default=10,
+    ap.add_argument("--bench-runs", type=within(int, COUNT), default=10,
                     help="cadence: runs of the bench verdict on the default bundle (default 10; --quick: 2)")
-    ap.add_argument("--readings", type=int, default=0,
+    ap.add_argument("--readings", type=within(int, READINGS), default=0,
                     help="instructions: readings counted per run (default 200; --quick: 20)")
-    ap.add_argument("--variants", nargs="*", default=None,
+    ap.add_argument("--variants", nargs="*", default=None, choices=("default", "d", "rgbmod_d", "fast"),
                     help="instructions: the shipped bundles to count (default, d, rgbmod_d; default all)")
+    ap.add_argument("--paths", nargs="*", default=None, choices=("compiled", "opencv"),
+                    help="instructions: the per-frame paths to count (default both: the compiled kernels and the "
+                         "robot-side install's OpenCV path)")
     ap.add_argument("--before", type=Path, default=None,
                     help="instructions: an earlier instructions.json: the page shows before / after")
+    ap.add_argument("--python", action="append", default=None,
+                    help="startup: an interpreter (an install) to measure; repeat for several (default: this one)")
+    ap.add_argument("--runs", type=within(int, COUNT), default=3,
+                    help="startup: new processes per figure, the median (default 3)")
     ap.add_argument("--write-default-stats", action="store_true",
                     help="trust: also store the default bundle's data_stats in edge/models/default/model.json")
-    ap.add_argument("--examples", type=int, default=100,
+    ap.add_argument("--examples", type=within(int, COUNT), default=100,
                     help="robustness: generated cases per generated category (default 100; --quick: 15)")
     ap.add_argument("--shipped-only", action="store_true",
                     help="stability: only the bundles shipped in edge/models (no torch, no random-weight bundles; "
@@ -120,6 +156,10 @@ def _main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if not args.what:
         ap.print_help()
+        return 2
+    problem = _problem(args)
+    if problem:  # judged before any counting or measuring
+        print(f"benchmarks {args.what}: {problem}", file=sys.stderr)
         return 2
     if args.quick and is_docs(args.out):
         print(f"--quick results are a smoke run and never go into the docs: drop --quick or pick another --out "
@@ -145,6 +185,10 @@ def _main(argv: list[str] | None = None) -> int:
         from .instructions import run as run_instructions
 
         return run_instructions(args, argv)
+    if args.what == "startup":
+        from .startup import run as run_startup
+
+        return run_startup(args, argv)
     if args.what == "intervals":
         from .intervals import intervals_page
 

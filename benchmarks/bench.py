@@ -250,8 +250,10 @@ def run_bench(bundles: Sequence[Path], frames: int = 1000, threads: int = 1, bud
             results.append(r)
     finally:
         cv2.setNumThreads(prev)
+    from tactile_force.edge import compiled_path
+
     return BenchReport(SCHEMA, machine, float(budget_ms), int(threads), int(frames),
-                       overall_verdict([r.verdict for r in results]), results, command)
+                       overall_verdict([r.verdict for r in results]), results, command, compiled_path.describe())
 
 
 __all__ = ["PLOT_PNG", "REPORT_JSON", "REPORT_MD", "SCHEMA", "STAGES", "VERDICT_TEXT", "WARMUP", "Attempt",

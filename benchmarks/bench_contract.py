@@ -134,6 +134,9 @@ class BenchReport:
     verdict: str
     bundles: list[BundleResult]
     command: str = ""
+    #: the per-frame image work's path on this host: the ``fast`` extra's compiled kernels or the OpenCV /
+    #: numpy calls of the robot-side install (edge/compiled_path.py; the readings are the same)
+    image_path: str = ""
 
     def to_json(self) -> dict:
         """Plain JSON values (NaN written as null)."""

@@ -120,7 +120,8 @@ def markdown(report: BenchReport) -> str:
     how = _measured_how(report)
     lines = ["# tactile-force bench", "", f"Command: `{report.command}`" if report.command else "",
              f"Commit: {source_commit()}", f"Machine: {m.line()}.",
-             f"At start: {m.background_load}.", "",
+             f"At start: {m.background_load}.",
+             *([f"Per-frame image work: {report.image_path}."] if report.image_path else []), "",
              f"{how[0].upper()}{how[1:]}. In-memory sources; total = frame arrival -> reading. "
              f"Verdict: **{VERDICT_TEXT.get(report.verdict, report.verdict)}**.",
              *([""] + [f"- {line}" for line in _missed_lines(report)] if _missed_lines(report) else []), "",

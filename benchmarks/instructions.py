@@ -23,6 +23,11 @@ features (AVX2, AVX-512).
     python -m benchmarks instructions --out docs/benchmarks    # -> instructions.md + .json
     python -m benchmarks instructions --quick                  # a smoke run (few readings)
 
+Each bundle is counted on both per-frame paths (edge/compiled_path.py): ``compiled``, the ``fast``
+extra's kernels (``TACTILE_FORCE_KERNELS=compile`` in the worker), and ``opencv``, the OpenCV / numpy
+calls of the robot-side install (``TACTILE_FORCE_KERNELS=off``); the worker checks that it runs the
+path it counts. ``--paths`` picks one.
+
 Where valgrind is not installed, or the host is not x86-64, the command says so and exits 0
 without a page.
 """
@@ -52,6 +57,11 @@ VARIANTS: tuple[tuple[str, str], ...] = (("default", "RGBmod"), ("d", "D"), ("rg
 #: the network's input, by the gate's kernel; 'downscale_opencv': the same values by OpenCV's INTER_AREA
 #: x2 steps; the floors of the page).
 MODES = ("runtime", "bare", "gate", "depth", "downscale", "downscale_opencv")
+#: The per-frame paths counted: the fast extra's compiled kernels, and the robot-side install's OpenCV calls
+#: (the value of TACTILE_FORCE_KERNELS in the worker).
+PATHS = {"compiled": "compile", "opencv": "off"}
+#: how a path's rows are labelled beside the bundle's label
+PATH_SUFFIX = {"compiled": "", "opencv": " (OpenCV path)"}
 FRAMES = 16  # virtual DIGIT frames in contact, cycled
 WARMUP = 5  # runs of every mode before the measured ones, in every worker run
 READINGS = 200  # measured readings per run (--quick: 20)
@@ -164,6 +174,13 @@ def worker(argv: list[str]) -> int:
     bundle, frames, modes, n = Path(argv[0]), Path(argv[1]), argv[2].split(","), int(argv[3])
     on_valgrind()  # the request compiled before anything is counted
     setup = _Setup(bundle, frames, n if "runtime" in modes else 0)
+    from tactile_force.edge import compiled_path
+
+    path = os.environ.get("TACTILE_FORCE_KERNELS", "")
+    uses = setup.frame_work._k is not None
+    if uses != (path == "compile"):  # never count one path under the other's name
+        raise RuntimeError(f"worker: TACTILE_FORCE_KERNELS={path!r} but the gate runs "
+                           f"{'the compiled kernels' if uses else 'OpenCV'} ({compiled_path.describe()})")
     for m in MODES:
         for _ in range(WARMUP if m != "runtime" else 0):
             setup.once(m)
@@ -196,6 +213,8 @@ class VariantCounts:
     label: str
     counts: dict[str, Count]
     ratio: float
+    #: the per-frame path counted (:data:`PATHS`); records before the robot-side path existed: compiled
+    path: str = "compiled"
 
 
 @dataclass
@@ -238,10 +257,10 @@ def _env() -> dict[str, str]:
 
 
 def count_variant(bundle: Path, label: str, frames: Path, readings: int, tmp: Path, log=print,
-                  modes: tuple[str, ...] = MODES) -> VariantCounts:
+                  modes: tuple[str, ...] = MODES, path: str = "compiled") -> VariantCounts:
     """Count one bundle's modes of ``modes`` (runtime and bare always; depth only for a bundle with
-    a depth input), N = ``readings`` each, in one run: each mode in its own segment
-    (:mod:`.harness.client_requests`)."""
+    a depth input), N = ``readings`` each, in one run on the per-frame ``path`` (:data:`PATHS`): each
+    mode in its own segment (:mod:`.harness.client_requests`)."""
     from tactile_force.edge.bundle.manifest import InputKind
     from tactile_force.edge.bundle.store import read_manifest
 
@@ -251,28 +270,31 @@ def count_variant(bundle: Path, label: str, frames: Path, readings: int, tmp: Pa
     t = time.monotonic()
     profiles = callgrind.run_segments([sys.executable, "-m", f"{__package__ or 'benchmarks'}.instructions",
                                        "--worker", str(bundle), str(frames), ",".join(modes), str(readings)],
-                                      tmp / f"callgrind.{bundle.name}.out", _env())
+                                      tmp / f"callgrind.{bundle.name}.{path}.out",
+                                      {**_env(), "TACTILE_FORCE_KERNELS": PATHS[path]})
     missing = set(modes) - set(profiles)
     if missing:
         raise RuntimeError(f"{label}: no count of {', '.join(sorted(missing))} in the worker's run")
     counts = {m: Count(profiles[m].total / readings, {k: v / readings for k, v in profiles[m].by_group().items()})
               for m in modes}
+    label += PATH_SUFFIX[path]
     log(f"  {label} {', '.join(modes)} x{readings}: " + ", ".join(f"{m} {profiles[m].total:,}" for m in modes)
         + f" instructions ({time.monotonic() - t:.0f} s)")
-    return VariantCounts(bundle.name, label, counts, counts["runtime"].total / counts["bare"].total)
+    return VariantCounts(bundle.name, label, counts, counts["runtime"].total / counts["bare"].total, path)
 
 
 def measure(readings: int, variants: list[str] | None = None, log=print,
-            modes: tuple[str, ...] = MODES) -> list[VariantCounts]:
+            modes: tuple[str, ...] = MODES, paths: tuple[str, ...] = tuple(PATHS)) -> list[VariantCounts]:
     """Counts of the shipped bundles named in ``variants`` (folders; default every bundle of VARIANTS), the
-    modes of ``modes`` (runtime and bare always)."""
+    modes of ``modes`` (runtime and bare always), on each per-frame path of ``paths``."""
     out = []
     with tempfile.TemporaryDirectory(prefix="instructions-") as d:
         tmp = Path(d)
         frames = _frames_file(tmp)
-        for name, label in VARIANTS:
-            if variants is None or name in variants:
-                out.append(count_variant(models_dir() / name, label, frames, readings, tmp, log, modes))
+        for path in paths:
+            for name, label in VARIANTS:
+                if variants is None or name in variants:
+                    out.append(count_variant(models_dir() / name, label, frames, readings, tmp, log, modes, path))
     return out
 
 
@@ -301,8 +323,40 @@ def stages(v: VariantCounts) -> dict[str, float]:
 
 
 def _variants(raw: list) -> list[VariantCounts]:
-    return [VariantCounts(v["bundle"], v["label"], {k: Count(**c) for k, c in v["counts"].items()}, v["ratio"])
-            for v in raw]
+    return [VariantCounts(v["bundle"], v["label"], {k: Count(**c) for k, c in v["counts"].items()}, v["ratio"],
+                          v.get("path", "compiled")) for v in raw]
+
+
+def _paths_section(rec: Record) -> list[str]:
+    """Per bundle: the robot-side path's reading against the compiled kernels' (and against the before
+    record's, counted on the compiled kernels where it predates the robot-side path)."""
+    from .harness.stats import markdown_table
+
+    by = {(v.bundle, v.path): v for v in rec.variants}
+    before = {v.bundle: v for v in _variants(rec.before) if v.path == "compiled"} if rec.before else {}
+    rows = []
+    for name, label in VARIANTS:
+        c, o = by.get((name, "compiled")), by.get((name, "opencv"))
+        if o is None:
+            continue
+        oc = o.counts["runtime"].total
+        cc = c.counts["runtime"].total if c else None
+        b = before.get(name)
+        bc = b.counts["runtime"].total if b else None
+        rows.append([label, _m(oc), "-" if cc is None else _m(cc),
+                     "-" if cc is None else f"{100 * (oc / cc - 1):+.0f} %",
+                     "-" if bc is None else _m(bc), "-" if bc is None else f"{100 * (oc / bc - 1):+.0f} %",
+                     "-" if cc is None or bc is None else f"{100 * (cc / bc - 1):+.1f} %"])
+    if not rows:
+        return []
+    return ["## The robot-side path against the compiled kernels (M per reading)", "",
+            "The robot-side install (`pip install .`) runs the gate's and the depth stage's OpenCV / numpy calls; "
+            "the `fast` extra the compiled kernels (edge/compiled_path.py). The readings are the same; the "
+            "instructions are not. 'before': the before record's reading (compiled kernels)." if rec.before else
+            "The robot-side install (`pip install .`) runs the gate's and the depth stage's OpenCV / numpy calls; "
+            "the `fast` extra the compiled kernels (edge/compiled_path.py). The readings are the same.", "",
+            markdown_table(["bundle", "robot-side path", "compiled kernels", "robot-side / compiled", "before",
+                            "robot-side / before", "compiled / before"], rows), ""]
 
 
 def _fast_ratio(variants: list[VariantCounts]) -> float | None:
@@ -398,6 +452,7 @@ def page(rec: Record) -> str:
                                  f"{100 * (sa[k] / sb[k] - 1):+.0f} %" if sb[k] else "-"])
         out += ["## Per stage, before and after (M per reading)", "",
                 markdown_table(["bundle", "stage", "before", "after", "change", "change %"], rows), ""]
+    out += _paths_section(rec)
     out += _floors(rec)
     groups = callgrind.GROUP_NAMES
     out += ["## Where the instructions ran (M per reading)", "",
@@ -416,6 +471,35 @@ def page(rec: Record) -> str:
     out += [f"Each bundle's modes counted in one run, each alone (callgrind's client requests; set-up and "
             f"imports neither instrumented nor counted). Counting took {rec.seconds:.0f} s.", ""]
     return "\n".join(out) + "\n"
+
+
+def read_before(path: Path) -> tuple[str, list]:
+    """(commit, variants as in the JSON) of an earlier instructions.json; ValueError saying what is
+    wrong (missing, a folder, not JSON, a key or a variant's field missing or of the wrong type)."""
+    path = Path(path)
+    if not path.exists():
+        raise ValueError("no such file; expected an earlier instructions.json")
+    if not path.is_file():
+        raise ValueError("not a file; expected an earlier instructions.json")
+    try:
+        raw = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ValueError(f"not readable as JSON ({exc.__class__.__name__}: {exc})") from None
+    if not isinstance(raw, dict) or not isinstance(raw.get("commit"), str) or not isinstance(raw.get("variants"),
+                                                                                           list):
+        raise ValueError("expected an instructions.json: an object with 'commit' (text) and 'variants' (a list)")
+    try:
+        parsed = _variants(raw["variants"])
+        for v in parsed:
+            stages(v)
+            float(v.ratio)
+            for c in v.counts.values():
+                float(c.total)
+                {str(k): float(x) for k, x in c.groups.items()}
+    except (KeyError, TypeError, ValueError, AttributeError) as exc:
+        raise ValueError(f"a variant is not of the shape instructions.json records ({exc.__class__.__name__}: "
+                         f"{exc})") from None
+    return raw["commit"], raw["variants"]
 
 
 def run(args: argparse.Namespace, argv: list[str]) -> int:
@@ -437,10 +521,9 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
     readings = args.readings if args.readings else (20 if args.quick else READINGS)
     before_commit, before = "", []
     if args.before is not None:  # read first: it may be the page being replaced
-        raw = json.loads(Path(args.before).read_text())
-        before_commit, before = raw["commit"], raw["variants"]
+        before_commit, before = read_before(args.before)
     t0 = time.monotonic()
-    variants = measure(readings, args.variants or None)
+    variants = measure(readings, args.variants or None, paths=tuple(args.paths or PATHS))
     m = describe_machine()
     vg = callgrind.version()
     rec = Record(command_line(argv), source_commit(), m.cpu, m.line(), readings, FRAMES, WARMUP, vg, variants,

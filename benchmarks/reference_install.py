@@ -157,10 +157,10 @@ def install_shipped_bundle(folder: str, bundle: Path, note: str = DEPTH_NOTE) ->
 
 
 FAST_NOTE = ("Trained on SYNTHETIC frames from the package's virtual DIGIT only, like the default bundle, at half "
-             "its width with one residual block per stage (a model call about half the default's instructions; a "
-             "reading also pays the contact gate, docs/benchmarks/instructions.md) for hosts where the default does "
-             "not hold its latency budget. It does not know your sensor: train on your own labelled DIGIT frames "
-             "(or distil your model with 'tactile-force compress') before trusting its newtons.")
+             "its width with one residual block per stage (a model call 0.36x the default's instructions, a whole "
+             "reading 0.48x with the gate's compiled kernels: docs/benchmarks/instructions.md) for hosts where the "
+             "default does not hold its latency budget. It does not know your sensor: train on your own labelled "
+             "DIGIT frames (or distil your model with 'tactile-force compress') before trusting its newtons.")
 
 
 class FastBundleError(TactileForceError):

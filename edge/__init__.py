@@ -1,4 +1,5 @@
-"""tactile_force.edge: the robot-side runtime (numpy + onnxruntime + OpenCV + SciPy, never torch).
+"""tactile_force.edge: the robot-side runtime (numpy + onnxruntime + OpenCV; numba and SciPy
+only with the ``fast`` and ``paper`` extras; never torch).
 
 Data flow: frame source -> contact gate -> [depth stage for D/Dmod/RGBmod+D] -> ONNX
 inference -> ForceReading. See docs/architecture.md; the subpackages are named for their

@@ -1,36 +1,24 @@
 """numba's ``njit`` as the package's compiled per-frame kernels use it (edge/gate/kernels.py,
-edge/depth/kernels.py; only they import this module, so importing the package does not load
-numba): no fastmath (IEEE operations in the order written, so a kernel can equal the OpenCV or
-numpy calls it replaces bit for bit), no GIL held, no bounds checks, cached on disk in the user's
-cache folder (:func:`cache_dir`), not in the install.
+edge/depth/kernels.py; the ``fast`` extra; only they import this module, and edge/compiled_path.py
+loads them off the reading path, so importing the package does not load numba): no fastmath (IEEE
+operations in the order written, so a kernel can equal the OpenCV or numpy calls it replaces bit for
+bit), no GIL held, no bounds checks, cached on disk in the user's cache folder (:func:`cache_dir`),
+not in the install.
 """
 
 from __future__ import annotations
 
 import logging
-import os
 from collections.abc import Callable
-from pathlib import Path
 from typing import Any, Literal
 
 import numba as nb
 
+from .compiled_path import cache_dir
+
 _log = logging.getLogger(__name__)
 #: numba's settings (its attributes are set at run time: untyped)
 _config: Any = nb.config
-
-
-def cache_dir() -> str:
-    """Where the kernels' compiled forms are kept (a folder; created by numba when first used):
-    ``NUMBA_CACHE_DIR`` when set, else ``tactile_force/numba`` in the user's cache folder
-    (``XDG_CACHE_HOME``, default ``~/.cache``). Never beside the modules: in an installed package
-    that is site-packages, where pip's uninstall leaves the files it did not install, and the
-    folders left there without their ``__init__.py`` shadow a later (editable) install of the
-    package."""
-    if _config.CACHE_DIR:
-        return str(_config.CACHE_DIR)
-    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return str(Path(base) / "tactile_force" / "numba")
 
 
 def compiled(what: str, inline: Literal["never", "always"] = "never") -> Callable[[Callable], Callable]:

@@ -118,7 +118,7 @@ def _compress_claimed(args: argparse.Namespace) -> int:
             raise CompressError("--epochs must be >= 1 and --max-frames >= 20")
         options = CompressOptions(teacher=args.teacher, frames=args.frames, out=args.out, labels=args.labels,
                                   budget_ms=args.budget_ms, seed=args.seed,
-                                  ladder=parse_ladder(args.ladder) if args.ladder else DEFAULT_LADDER,
+                                  ladder=parse_ladder(args.ladder) if args.ladder is not None else DEFAULT_LADDER,
                                   epochs=args.epochs, max_frames=args.max_frames, threads=args.threads,
                                   augment=None if args.no_augment else Augment(),
                                   show_progress=True, background=args.background,

@@ -52,13 +52,16 @@ DEFAULT_LADDER: tuple[Rung, ...] = (Rung(0.125, 8), Rung(0.25, 4, (1, 1, 1, 1)),
 
 def parse_ladder(text: str) -> tuple[Rung, ...]:
     """'0.25x4,0.5x4b1111' -> rungs (width x k, optionally b + four blocks-per-stage digits)."""
+    import re
+
     rungs = []
-    for part in (p.strip() for p in text.split(",") if p.strip()):
+    for part in (p.strip() for p in text.split(",")):
+        m = re.fullmatch(r"([0-9]*\.?[0-9]+)x([0-9]+)(?:b([0-9]{4}))?", part.lower())
         try:
-            head, _, tail = part.lower().partition("b")
-            w, k = head.split("x")
-            blocks = tuple(int(c) for c in tail) if tail else RESNET18_BLOCKS
-            rungs.append(Rung(float(w), int(k), check_blocks(blocks)))
+            if m is None:
+                raise ValueError(part)
+            blocks = tuple(int(c) for c in m.group(3)) if m.group(3) else RESNET18_BLOCKS
+            rungs.append(Rung(float(m.group(1)), int(m.group(2)), check_blocks(blocks)))
         except (ValueError, TactileForceError):
             raise CompressError(f"--ladder {part!r}: expected WIDTHxK or WIDTHxKbNNNN, e.g. 0.25x4 (width 0.25, "
                                 "input 1/4) or 0.25x4b1111 (the same with one residual block per stage)") from None

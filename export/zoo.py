@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import torch
 from tactile_force.edge.bundle.manifest import VARIANTS
+from tactile_force.edge.bundle.manifest_graph import stage_channels
 from tactile_force.edge.errors import TactileForceError
 from torch import nn
 
@@ -68,7 +69,7 @@ def channels(width: float) -> tuple[int, int, int, int]:
     """Channel counts of layer1..layer4 for a width multiplier (64, 128, 256, 512 at 1.0)."""
     if not (0 < float(width) <= 4):
         raise TactileForceError(f"width multiplier {width!r} out of range; expected 0 < width <= 4")
-    return tuple(max(4, int(round(base * float(width)))) for base in (64, 128, 256, 512))  # type: ignore[return-value]
+    return stage_channels(width)
 
 
 class BasicBlock(nn.Module):

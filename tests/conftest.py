@@ -193,3 +193,23 @@ class FakeClock:
 
     def sleep(self, seconds: float) -> None:
         self.t += int(seconds * 1e9)
+
+
+def compiled_kernels(*kinds: str):
+    """Load the ``fast`` extra's compiled kernels of ``kinds`` ('gate', 'depth') in this test process,
+    compiling those missing from numba's cache (seconds, once per environment); skips, naming the
+    extra, where numba is not installed. Kernels once loaded stay in use in the process (the paths
+    give the same values)."""
+    pytest.importorskip("numba", reason="the compiled kernels are the 'fast' extra (numba), not installed here")
+    from tactile_force.edge import compiled_path
+
+    compiled_path.load(kinds)
+
+
+@pytest.fixture
+def kernel_mode():
+    """Set the compiled-kernel mode for one test ('off': the OpenCV / numpy path); restored after."""
+    from tactile_force.edge import compiled_path
+
+    yield compiled_path.set_kernel_mode
+    compiled_path.set_kernel_mode(None)

@@ -10,7 +10,9 @@ compact model).
   activations or QLinear* ops; int8-dynamic: DynamicQuantizeLinear / ConvInteger /
   MatMulInteger; fp16: float16 weights; fp32: none of these). ``bundle verify`` compares it
   with the manifest's ``precision``; ``tactile-force bench`` reports it.
-- :func:`manifest_problems`: every manifest claim the graph can contradict: the precision,
+- :func:`manifest_problems`: every manifest claim the graph can contradict: the precision, the
+  architecture's width and residual blocks (:func:`architecture_problems`: the convolutions' count
+  and channels),
   the network input size against ``architecture.input_scale`` / ``network_input_hw`` and the
   inputs' recorded ``reduction``, and the inputs against the variant (rgb / depth).
 
@@ -68,6 +70,8 @@ class GraphFacts:
     ops: Counter = field(default_factory=Counter)
     initializers: Counter = field(default_factory=Counter)
     inputs: dict[str, GraphInput] = field(default_factory=dict)
+    #: dims of the 4-D initializers (convolution weights: out, in, kernel rows, kernel cols)
+    kernels: list[tuple[int, ...]] = field(default_factory=list)
 
 
 def _varint(buf: memoryview, i: int) -> tuple[int, int]:
@@ -123,6 +127,23 @@ def _sub(buf: memoryview, num: int) -> memoryview | None:
     return out
 
 
+def _dims(tensor: memoryview) -> tuple[int, ...]:
+    """TensorProto.dims (field 1, repeated int64: packed or one varint each)."""
+    out: list[int] = []
+    for n, wt, v in _fields(tensor):
+        if n != 1:
+            continue
+        if wt == 0:
+            out.append(int(v or 0))
+        elif wt == 2:
+            assert isinstance(v, memoryview)
+            i = 0
+            while i < len(v):
+                d, i = _varint(v, i)
+                out.append(d)
+    return tuple(out)
+
+
 def _value_info(buf: memoryview) -> tuple[str, GraphInput]:
     """(name, element type and dims) of a ValueInfoProto."""
     name_b = _sub(buf, 1)
@@ -171,6 +192,9 @@ def _graph(buf: memoryview, facts: GraphFacts, depth: int = 0) -> None:
         elif num == 5:  # TensorProto initializer
             dtype = next((x for n2, w2, x in _fields(v) if n2 == 2 and w2 == 0), 0)
             facts.initializers[DATA_TYPES.get(int(dtype or 0), f"type{dtype}")] += 1
+            dims = _dims(v)
+            if len(dims) == 4:
+                facts.kernels.append(dims)
             name_b = _sub(v, 8)
             if name_b is not None:
                 weights.add(bytes(name_b).decode("utf-8", "replace"))
@@ -329,11 +353,38 @@ def input_problems(manifest, facts: GraphFacts) -> list[str]:  # manifest: Manif
     return out
 
 
+def architecture_problems(manifest, facts: GraphFacts) -> list[str]:  # manifest: Manifest
+    """Where the graph's convolutions contradict ``architecture.width`` and ``architecture.blocks``
+    (ResNet-18 family): each trunk (one 7 x 7 stem) has 4 + 2 x sum(blocks) convolutions (stem,
+    two per residual block, a 1 x 1 shortcut at stages 2-4), its stem ``channels(width)[0]`` outputs
+    and its convolutions the four stages' channel counts. A graph whose weights are not initializers
+    shows neither: nothing said."""
+    a = manifest.architecture
+    if a.family != "resnet18":
+        return []
+    convs = [k for k in facts.kernels if k[0] >= 4 and k[2] == k[3] and k[2] in (1, 3, 7)]
+    stems = [k for k in convs if k[2] == 7]
+    if not stems:
+        return []
+    out: list[str] = []
+    c = a.channels()
+    per_trunk = 4 + 2 * sum(int(b) for b in a.blocks)
+    if len(convs) != per_trunk * len(stems):
+        found = (len(convs) // len(stems) - 4) / 2
+        out.append(f"architecture.blocks {list(a.blocks)} makes {per_trunk} convolutions per trunk, but the graph "
+                   f"has {len(convs)} in {len(stems)} trunk(s) ({found:g} residual blocks in all per trunk)")
+    if any(s[0] != c[0] for s in stems) or max(k[0] for k in convs) != c[3]:
+        out.append(f"architecture.width {a.width:g} makes stages of {list(c)} channels, but the graph's stem has "
+                   f"{stems[0][0]} and its widest convolution {max(k[0] for k in convs)}")
+    return out
+
+
 def manifest_problems(manifest, facts: GraphFacts) -> list[str]:  # manifest: Manifest
     """Every manifest claim the graph contradicts (:func:`precision_problem`,
-    :func:`input_problems`), one sentence each; [] when the graph agrees with all of them."""
+    :func:`input_problems`, :func:`architecture_problems`), one sentence each; [] when the graph
+    agrees with all of them."""
     problem = precision_problem(manifest.precision.value, facts)
-    return ([problem] if problem else []) + input_problems(manifest, facts)
+    return ([problem] if problem else []) + input_problems(manifest, facts) + architecture_problems(manifest, facts)
 
 
 def _ops(facts: GraphFacts) -> str:
@@ -341,5 +392,6 @@ def _ops(facts: GraphFacts) -> str:
     return f"ops: {top}" if top else "no ops"
 
 
-__all__ = ["GraphFacts", "GraphInput", "bundle_precision", "facts_by_sha256", "facts_of_bytes", "graph_facts",
-           "graph_precision", "input_problems", "manifest_problems", "precision_problem"]
+__all__ = ["GraphFacts", "GraphInput", "architecture_problems", "bundle_precision", "facts_by_sha256",
+           "facts_of_bytes", "graph_facts", "graph_precision", "input_problems", "manifest_problems",
+           "precision_problem"]

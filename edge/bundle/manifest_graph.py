@@ -152,6 +152,13 @@ class ModelOutputSpec:
             raise ValueError(f"output {self.name!r}: {self.dtype} in {self.unit!r}; expected float32 in 'N'")
 
 
+def stage_channels(width: float) -> tuple[int, int, int, int]:
+    """Channel counts of layer1..layer4 of the ResNet-18 family for a width multiplier (64, 128, 256,
+    512 at 1.0; at least 4 each): what export builds and what ``bundle verify`` checks a graph against."""
+    c1, c2, c3, c4 = (max(4, int(round(base * float(width)))) for base in (64, 128, 256, 512))
+    return c1, c2, c3, c4
+
+
 @dataclass
 class Architecture:
     """The network: ResNet-18 family, width multiplier, input scale and residual blocks per
@@ -169,6 +176,10 @@ class Architecture:
     opset: int | None = None
     macs_by_op: dict[str, int] = field(default_factory=dict)
     blocks: list[int] = field(default_factory=lambda: [2, 2, 2, 2])
+
+    def channels(self) -> tuple[int, int, int, int]:
+        """Channels of layer1..layer4 at this width (64, 128, 256, 512 at 1.0; at least 4 each)."""
+        return stage_channels(self.width)
 
     def check(self) -> None:
         if not 0 < self.width <= 4 or not 0 < self.input_scale <= 1:

@@ -26,6 +26,15 @@ class BenchInputError(TactileForceError):
     """A ``tactile-force bench`` argument is unusable (exit 2); the message names it."""
 
 
+def cadence_seconds(cadence_frames: int, fps: float) -> float:
+    """Seconds one bundle spends at the cadence: the runtime's warm-up and warm-up trial, the readings,
+    then the graph alone as often (the one formula of the help and the run's header)."""
+    from tactile_force.benchmarks.bench import WARMUP
+    from tactile_force.benchmarks.harness.latency import auto_trial_frames
+
+    return (2 * cadence_frames + WARMUP + auto_trial_frames(fps)) / fps
+
+
 def configure(p: argparse.ArgumentParser) -> None:
     from tactile_force.benchmarks.harness.stats import MIN_P99_READINGS as FLOOR
 
@@ -37,9 +46,10 @@ def configure(p: argparse.ArgumentParser) -> None:
         "  tactile-force bench                                  # every shipped bundle\n"
         "  tactile-force bench --bundle my_int8 my_fp32         # your bundles\n"
         "  tactile-force bench --bundle B --data LABELLED_DIR --background NO_CONTACT.png   # + error (RE, MAE)\n"
-        "  tactile-force bench --fps 30 --cadence-frames 1000   # a 30 fps sensor, 1000 readings at it (~72 s each)\n"
-        "At 60 fps the default 300 cadence readings (the runtime's warm-up trial, then the graph alone as\n"
-        "often) take ~15 s per bundle, on top of the\n"
+        "  tactile-force bench --fps 30 --cadence-frames 1000   # a 30 fps sensor, 1000 readings at it "
+        f"(~{cadence_seconds(1000, 30.0):.0f} s each)\n"
+        "At 60 fps the default 300 cadence readings (with the runtime's warm-up trial, then the graph alone as\n"
+        f"often) take ~{cadence_seconds(300, 60.0):.0f} s per bundle, on top of the "
         f"back-to-back run; a p99 verdict needs >= {FLOOR} readings at the cadence (back to back is not judged).\n"
         "Writes report.json (docs/bench.md), report.md and pareto.png (error vs p99 at the cadence) to --out.\n"
         "Exit 0 every bundle within budget, 1 any over budget or machine busy (no verdict), 2 bad input.")
@@ -58,8 +68,8 @@ def configure(p: argparse.ArgumentParser) -> None:
                    help="the sensor's cadence: frames arriving per second per sensor (default 60, a DIGIT's); the "
                         "verdict is judged at it")
     p.add_argument("--cadence-frames", type=within(int, READINGS), default=300,
-                   help="readings measured at --fps per bundle (default 300: ~5.5 s per bundle at 60 fps, warm-up "
-                        f"included; >= {FLOOR} for a p99 verdict)")
+                   help=f"readings measured at --fps per bundle (default 300: ~{cadence_seconds(300, 60.0):.0f} s per "
+                        f"bundle at 60 fps, warm-up, trial and the graph alone included; >= {FLOOR} for a p99 verdict)")
     p.add_argument("--repeats", type=within(int, COUNT), default=3,
                    help="attempts at most; a new one only after one over budget on a busy machine (default 3)")
     p.add_argument("--pause-s", type=within(int, PAUSE_S), default=30, help="seconds before a repeat (default 30)")
@@ -89,11 +99,21 @@ def _check_args(args: argparse.Namespace) -> list[Path]:
         from ..sources import ReplayFolderSource
 
         try:
-            ReplayFolderSource(args.data).close()
+            src = ReplayFolderSource(args.data)
         except SourceError as exc:
             raise BenchInputError(f"--data: {exc}") from None
-    if args.background is not None and not args.background.exists():
-        raise BenchInputError(f"--background {args.background}: not found (expected a no-contact image)")
+        src.close()
+        if not src.true_forces():
+            raise BenchInputError(f"--data {args.data}: no frame with a true force (expected the authors' layout: "
+                                  "images/N.png + forces/force_N.txt, e.g. from 'tactile-force record' or 'synth')")
+    if args.background is not None:  # decoded now, as the replay will, not after the latency runs
+        from ..errors import SourceError
+        from ..sources import load_background
+
+        try:
+            load_background(args.background)
+        except (SourceError, OSError) as exc:
+            raise BenchInputError(f"--background {args.background}: {exc}") from None
     from ..files.guard import OutputKind, check_output
 
     # --out is bench's own result folder: never an input, replaced only with --force and only when
@@ -107,8 +127,7 @@ def _inputs(args: argparse.Namespace, bundles: list[Path]) -> list[tuple[str, Pa
 
 
 def main(args: argparse.Namespace) -> int:
-    from tactile_force.benchmarks.bench import WARMUP, run_bench, text_table, write_report
-    from tactile_force.benchmarks.harness.latency import auto_trial_frames
+    from tactile_force.benchmarks.bench import run_bench, text_table, write_report
     from tactile_force.benchmarks.harness.stats import MIN_P99_READINGS
 
     from ..files.atomic import staged_folder
@@ -120,7 +139,7 @@ def main(args: argparse.Namespace) -> int:
     # warn about its data statistics on every row; the figures are latency, not accuracy.
     command = "tactile-force bench " + " ".join(shlex.quote(a) for a in sys.argv[2:]) \
         if len(sys.argv) > 1 and sys.argv[1] == "bench" else "tactile-force bench"
-    each_s = (2 * args.cadence_frames + WARMUP + auto_trial_frames(args.fps)) / args.fps  # + the graph alone
+    each_s = cadence_seconds(args.cadence_frames, args.fps)
     print(f"bench: {len(bundles)} bundle(s), {args.frames} frames each back to back and {args.cadence_frames} at "
           f"{args.fps:g} fps (~{each_s:.1f} s each, the graph alone at the cadence included), "
           f"{args.threads} "
@@ -139,5 +158,6 @@ def main(args: argparse.Namespace) -> int:
         names = [p.name for p in write_report(report, tmp)]
     print(text_table(report))
     print(cpu_line(report.machine.cpu, report.machine.cores))  # the host every figure above was measured on
+    print(f"Per-frame image work: {report.image_path}")
     print("wrote " + ", ".join(str(args.out / n) for n in names))
     return 0 if report.passed else 1

@@ -48,6 +48,8 @@ COMMANDS: dict[str, tuple[str, str, str, str]] = {
               "does each bundle meet the latency budget on this host, at what error? report + plot (no torch)"),
     "study": ("tactile_force.export.cli_study", "configure", "main",
               "quantization study of your fp32 bundle on your labelled data: error vs latency per configuration"),
+    "kernels": ("tactile_force.edge.cli.kernels", "configure", "main",
+                "compile the 'fast' extra's kernels once per environment (a container image: at build time)"),
     "synth": ("tactile_force.edge.cli.synth", "configure", "main",
               "generate a synthetic labelled DIGIT dataset in the authors' layout"),
     "calibrate-depth": ("tactile_force.edge.cli.calibrate_depth", "configure", "main",
@@ -61,7 +63,8 @@ COMMANDS: dict[str, tuple[str, str, str, str]] = {
 
 #: top-level module -> the extra that provides it (a missing one gives one line and exit 2)
 _EXTRA_OF = {"torch": "export", "onnx": "export", "onnxscript": "export", "usb": "usb", "hid": "usb",
-             "depthai": "oak", "matplotlib": "bench", "cyclonedds": "ros2", "mcap": "mcap"}
+             "depthai": "oak", "matplotlib": "bench", "cyclonedds": "ros2", "mcap": "mcap",
+             "numba": "fast", "scipy": "paper"}
 _EXTRA_HINT = {
     "export": ("Install torch's CPU build first (pip install torch with the CPU-only wheel index that PyTorch's "
                "install page gives for your platform; a plain 'pip install torch' pulls a multi-GB CUDA build), "
@@ -71,6 +74,8 @@ _EXTRA_HINT = {
     "bench": "Install it with: pip install 'tactile-force[bench]'",
     "ros2": "Install it with: pip install 'tactile-force[ros2]'",
     "mcap": "Install it with: pip install 'tactile-force[mcap]'",
+    "fast": "Install it with: pip install 'tactile-force[fast]'",
+    "paper": "Install it with: pip install 'tactile-force[paper]'",
 }
 
 

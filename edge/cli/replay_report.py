@@ -46,18 +46,27 @@ def replay_plot_path(outs: list[str], scene) -> Path | None:
     return first.with_name(f"{first.stem}_{PLOT_NAME}")
 
 
-def plot_force(readings: list[ForceReading], path: Path) -> str:
-    """Force over time, truth vs estimate, as PNG (:func:`tactile_force.edge.report.plots.force_vs_time`)."""
-    t = np.array([r.timestamp_ns for r in readings], np.float64)
-    t = (t - t[0]) / 1e9 if t.size else t
+#: the x axis of a replay read as fast as it is processed: its stamps are processing times, not the sensor's
+INDEX_AXIS = "frame of the recording (read unpaced: no --fps)"
+
+
+def plot_force(readings: list[ForceReading], path: Path, by_index: bool = False) -> str:
+    """Force against time, truth vs estimate, as PNG (:func:`tactile_force.edge.report.plots.force_vs_time`);
+    ``by_index``: against each reading's frame index instead (a replay read unpaced, whose stamps only
+    say when each frame was processed)."""
+    if by_index:
+        t = np.array([r.frame_index for r in readings], np.float64)
+    else:
+        t = np.array([r.timestamp_ns for r in readings], np.float64)
+        t = (t - t[0]) / 1e9 if t.size else t
     est = np.array([r.force_n for r in readings], np.float64)
     truth = np.array([np.nan if r.truth_n is None else r.truth_n for r in readings], np.float64)
-    return _plot_cv(t, est, truth, path)
+    return _plot_cv(t, est, truth, path, INDEX_AXIS if by_index else "time (s)")
 
 
-def _plot_cv(t: np.ndarray, est: np.ndarray, truth: np.ndarray, path: Path) -> str:
+def _plot_cv(t: np.ndarray, est: np.ndarray, truth: np.ndarray, path: Path, xlabel: str = "time (s)") -> str:
     """The force plot (OpenCV, the package's one plotting module); returns how it was drawn."""
     from ..report.plots import force_vs_time
 
-    force_vs_time(t, est, truth, path)
+    force_vs_time(t, est, truth, path, xlabel=xlabel)
     return "opencv"

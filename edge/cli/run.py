@@ -265,8 +265,12 @@ def main(args: argparse.Namespace) -> int:
         built.close()  # closes every output: an MCAP log gets its summary and footer
     print("\n".join(_summary_lines(stats, rt) + truth_lines(readings)), file=sys.stderr)
     if readings and (plot := replay_plot_path(args.out, scene)) is not None:
-        plot_force(readings, plot)
-        print(f"wrote {plot} (force and truth against time)", file=sys.stderr)
+        from ..sources import ReplayFolderSource, VideoFileSource
+
+        unpaced = all(isinstance(s.source, (ReplayFolderSource, VideoFileSource)) and s.source.fps is None
+                      for s in rt.sensors)  # its stamps say when a frame was processed, not when it was taken
+        plot_force(readings, plot, by_index=unpaced)
+        print(f"wrote {plot} (force and truth against {'the frame index' if unpaced else 'time'})", file=sys.stderr)
     if stop.signal is not None:
         print(f"run stopped by {stop.signal.name} after {stats.readings} readings; outputs closed", file=sys.stderr)
         return 128 + int(stop.signal)  # 130 SIGINT, 143 SIGTERM: every output complete, but the run was cut short

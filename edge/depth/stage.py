@@ -25,17 +25,20 @@ stay in full-resolution pixels (see :class:`DepthOptions`, Notes), so ``levels_p
 the same at every ``downscale``.
 
 With a ``calibrate-depth`` LUT in exact mode at k > 1 (float32, the compact bundles), the gate's
-reduced image and uint8 mask take two compiled passes around the DST-I products
-(edge/depth/kernels.py, numba, loaded when such a stage is built): the same values, bit for bit,
-as the numpy path every other input takes.
+reduced image and uint8 mask take two compiled passes around the DST-I products where the ``fast``
+extra's kernels are compiled for this environment (edge/depth/kernels.py, numba; edge/compiled_path.py
+loads them from numba's cache when such a stage is built, never compiling there): the same values,
+bit for bit, as the numpy path that every other input, and these without the kernels, take.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from types import ModuleType
 
 import numpy as np
 
+from .. import compiled_path
 from ..checks import expect
 from ..errors import FrameError
 from ..frames import FRAME_SHAPE, check_frame, exposure_problem
@@ -121,15 +124,14 @@ class DepthStage:
         self._cell_of = ((rows // 2) * (w // 2) + cols // 2).ravel()  # mapping_step 2: each pixel's 2x2 cell
         #: whether the compiled kernels (edge/depth/kernels.py) apply: a LUT, exact mode at a
         #: downscale k > 1 (the compact depth bundles), float32 DST-I products; else the numpy path
-        self._uses_kernels = False
-        if (self.lut is not None and options.mode == "exact" and k > 1 and dtype is np.float32
-                and self.solver.backend == "matmul"):
-            from . import kernels
-
-            kernels.warm()
-            self._uses_kernels = True
-            self._gradients_divergence = kernels.gradients_divergence
-            self._depth_image = kernels.depth_image
+        self._uses_kernels = (self.lut is not None and options.mode == "exact" and k > 1 and dtype is np.float32
+                              and self.solver.backend == "matmul")
+        if self._uses_kernels:
+            compiled_path.request("depth")  # from numba's cache; never compiled here
+        #: the compiled kernels where this process has them, else None: the numpy path
+        self._kernels: ModuleType | None = compiled_path.depth_kernels() if self._uses_kernels else None
+        if self._uses_kernels:
+            assert self.lut is not None  # _uses_kernels says so
             self._bg_rows = np.ascontiguousarray(self._bg_box.reshape(h, w * 3))
             self._glut_flat = np.ascontiguousarray(self._glut.ravel())  # gx, gy interleaved per cell
             self._scratch = np.zeros(4 + 3 * w, np.int64)  # the mask's box, its columns, a row's bins
@@ -263,10 +265,10 @@ class DepthStage:
                 if problem is not None:
                     return self._fail(f"invalid input: {problem}")
             frame = self._grid_frame(frame)
-            if (self._uses_kernels and type(mask) is np.ndarray and mask.dtype == np.uint8
+            if (self._kernels is not None and type(mask) is np.ndarray and mask.dtype == np.uint8
                     and mask.shape == self._grid_hw and mask.flags.c_contiguous
                     and frame.shape == self.grid_frame_shape and frame.flags.c_contiguous):
-                return self._process_kernels(frame, mask)  # the gate's reduced image and mask
+                return self._process_kernels(self._kernels, frame, mask)  # the gate's reduced image and mask
             m, why = self._mask(mask)
             if m is None:
                 return self._fail(f"invalid input: {why}")
@@ -284,7 +286,7 @@ class DepthStage:
         except Exception as exc:  # last line of defence: the runtime loop must survive
             return self._fail(f"depth stage error: {exc.__class__.__name__}: {exc}")
 
-    def _process_kernels(self, frame: np.ndarray, mask: np.ndarray) -> DepthResult:
+    def _process_kernels(self, kernels: ModuleType, frame: np.ndarray, mask: np.ndarray) -> DepthResult:
         """Exact mode with the LUT on the depth grid in two compiled passes around the DST-I
         products: the same values as the numpy path (mask counts and saturation,
         :meth:`_lut_gradients_in_box`, :meth:`_integrate`), bit for bit. ``frame``: C-contiguous
@@ -292,7 +294,7 @@ class DepthStage:
         assert self.lut is not None
         h, w = self._grid_hw
         rows = frame.reshape(h, w * 3)
-        contact_px, sat = self._gradients_divergence(rows, mask, self._bg_rows, self._glut_flat, self._work,
+        contact_px, sat = kernels.gradients_divergence(rows, mask, self._bg_rows, self._glut_flat, self._work,
                                                      self._div, self._scratch, self._inv_width, self._top,
                                                      self.lut.bins, self.options.saturated_fraction)
         if contact_px == 0:
@@ -300,7 +302,7 @@ class DepthStage:
         if sat > self.options.saturated_fraction * contact_px:
             return self._fail(f"saturated: {sat}/{contact_px} contact pixels at 255", contact_px)
         interior = self.solver.solve_divergence(self._div)
-        if not self._depth_image(interior, mask, self._levels, self._height, self._depth_rows):
+        if not kernels.depth_image(interior, mask, self._levels, self._height, self._depth_rows):
             return self._fail("non-finite height after integration", contact_px)  # cannot happen: guarded
         return DepthResult(self._depth.copy(), True, "", self._height, contact_px, 0)
 

@@ -34,6 +34,7 @@ import threading
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
+from ..errors import TactileForceError
 from ..interrupts import raise_pending
 from .record import OUTPUT_MARK, Verification, remove_proved, verify, write_record
 
@@ -127,7 +128,7 @@ def _named(exc: OSError, staging: Path, dest: Path) -> OSError:
                               "before is kept)", path)
 
 
-class _Refused(Exception):
+class _Refused(TactileForceError):
     """Publishing found something it may not replace (carries the message)."""
 
 

@@ -41,13 +41,14 @@ from collections.abc import Iterable
 import cv2
 import numpy as np
 
+from .. import compiled_path
 from ..bundle.manifest import FrameReduction
 from ..checks import expect
 from ..errors import FrameError
 from ..frames import TimedFrame, check_frame
 from .blobs import BlobFinder
 from .checks import Reference, colour_swapped, dark_share, is_uniform, motion_explained, noise_verdict
-from .frame_work import THUMB_CELL_PX, FrameWork, load_kernels
+from .frame_work import THUMB_CELL_PX, FrameWork
 from .learning import BackgroundLearner, RelearnPolicy, refresh
 from .options import GateOptions
 from .reduce import default_reduction
@@ -70,7 +71,7 @@ class ContactGate:
         expect(options, (GateOptions, type(None)), "ContactGate.options", "a GateOptions or None (the defaults)")
         self.options = options or GateOptions()
         self.options.validate()
-        load_kernels()  # numba's compiled kernels, once per process: not on the first frame
+        compiled_path.request("gate")  # the compiled kernels, off the reading path (OpenCV meanwhile)
         self._bg: np.ndarray | None = None  # blurred background, float32, working res
         self._bg_thumb: np.ndarray | None = None  # its thumbnail, float32
         self._ref: Reference | None = None

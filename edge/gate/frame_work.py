@@ -6,39 +6,33 @@ of the reduced image (``work``), its thumbnail, the pixel-noise level and the ch
 |frame - model| (one kernel call for the first four), and for the judging the thumbnail's photometric
 fit (:meth:`FrameWork.fit`: one kernel call for its residual and sums over the cells that fit; every
 cell, after a sudden change, keeps OpenCV's means) and check (:meth:`FrameWork.residual`) and the
-contact blob's area and deformation (:meth:`FrameWork.contact_stats`). The common case (a power-of-two
-factor dividing the frame, blur 3) runs the compiled kernels of edge/gate/kernels.py (numba, loaded on
-the first frame; the first run of a Python environment compiles them, later runs load them from
-numba's cache); they equal the OpenCV calls they replace bit for bit (tests/edge/gate/test_kernels.py
-holds those calls as the oracle). A factor that is not a power of two, one that does not divide the
-frame, another blur or a working image under 2 x 2 pixels keeps the OpenCV calls below.
+contact blob's area and deformation (:meth:`FrameWork.contact_stats`).
+
+Two equal paths: OpenCV calls (the robot-side install), and where the ``fast`` extra's kernels are
+compiled for this environment (edge/compiled_path.py: loaded from numba's cache when the gate is
+made, never compiled there) the kernels of edge/gate/kernels.py for the common case (a power-of-two
+factor dividing the frame, blur 3). They equal the OpenCV calls bit for bit
+(tests/edge/gate/test_kernels.py), so a reading is the same on either path. A factor that is not a
+power of two, one that does not divide the frame, another blur or a working image under 2 x 2 pixels
+always takes the OpenCV calls.
 """
 
 from __future__ import annotations
 
-import functools
-import importlib
 import math
 from types import ModuleType
 
 import cv2
 import numpy as np
 
+from .. import compiled_path
 from ..bundle.manifest import Reduction
 from .reduce import FrameReducer, default_reduction
 
-__all__ = ["FrameWork", "load_kernels"]
+__all__ = ["FrameWork"]
 
 #: Thumbnail cell size in full-resolution pixels (a 320x240 frame -> 20x15 cells).
 THUMB_CELL_PX = 16
-
-
-@functools.cache
-def _kernels() -> ModuleType:
-    """edge/gate/kernels.py, imported (numba loaded) and every kernel loaded on first use."""
-    k = importlib.import_module(".kernels", __package__)
-    k.warm()
-    return k
 
 
 def _gaussian(src: np.ndarray, dst: np.ndarray, b: int) -> None:
@@ -47,12 +41,6 @@ def _gaussian(src: np.ndarray, dst: np.ndarray, b: int) -> None:
         cv2.GaussianBlur(src, (b, b), 0, dst=dst)
     else:
         np.copyto(dst, src)
-
-
-def load_kernels() -> None:
-    """Load the compiled kernels now (a :class:`~tactile_force.edge.gate.contact_gate.ContactGate`
-    does when it is made, so its first frame does not wait for them)."""
-    _kernels()
 
 
 class FrameWork:
@@ -96,7 +84,8 @@ class FrameWork:
         self.reducer = FrameReducer(default_reduction(s), self.shape) if self.exact and s > 1 else None
         steps = self.reducer is not None and self.reducer.reduction.method is Reduction.AREA_2X_STEPS
         blur3 = self.blur == 3 and wh >= 2 and ww >= 2
-        self._k = _kernels()
+        #: the compiled kernels where this process has them (edge/compiled_path.py), else None: the OpenCV path
+        self._k: ModuleType | None = compiled_path.gate_kernels()
         self._t = np.empty(wh * ww * 3, np.uint16)  # the blur's vertical sums
         self._v = np.empty((s, w * 3), np.uint8) if steps else None
         self._blur3 = blur3
@@ -126,6 +115,14 @@ class FrameWork:
         self._thumb_made = False  # the last reduce made the thumbnail of ``work``
         self._fit_sums = np.zeros(13, np.float64)  # the fit's sums (kernels.fit_sums)
         self._moments: list[tuple[float, float, float, float]] = []
+        # the OpenCV path's buffers: the model image, its uint8 form, the thumbnail's |difference|
+        self._model_img = np.empty((wh, ww, 3), np.float32)
+        self._model_u8 = np.empty((wh, ww, 3), np.uint8)
+        self._tdiff = np.empty(self.thumb.shape, np.float32)
+        self._tprod = np.empty(self.thumb.shape, np.float32)
+        self._zero3 = np.zeros(3)
+        self._thr3 = np.full(3, float(threshold))
+        self._tol3 = np.zeros(3)
 
     def reduce(self, frame: np.ndarray, blur: bool = False, noise: bool = False) -> None:
         """The frame's one downscale into ``small``; with ``blur`` also its blur into ``work``, with
@@ -134,12 +131,13 @@ class FrameWork:
         s = self.downscale
         self._noise_of = None
         self._thumb_made = False
-        if self._v is not None:
+        k = self._k
+        if k is not None and self._v is not None:
             h, w = self.shape[:2]
             noise = noise and self._noise_kernel
             blur3 = blur and self._blur3
             self._thumb_made = blur3 and self._f > 0
-            self._k.reduce_blur(frame.reshape(h, w * 3), s, self._small2, self._work2 if blur3 else self._none,
+            k.reduce_blur(frame.reshape(h, w * 3), s, self._small2, self._work2 if blur3 else self._none,
                                 self._sub2 if noise else self._none, self._v, self._t, self._sub_blur1, self._acc,
                                 self._sums, self._f, self._thumb2 if self._thumb_made else self._no_thumb)
             if noise:
@@ -166,7 +164,7 @@ class FrameWork:
     def blur_small(self) -> None:
         """``work`` = the blur of ``small``."""
         self._thumb_made = False
-        if self._blur3:
+        if self._blur3 and self._k is not None:
             self._k.blur3(self._small2, self._t, self._work2)
         else:
             self._blur_cv()
@@ -190,7 +188,7 @@ class FrameWork:
         if self._noise_of is frame:  # measured by the reduce of this frame: taken once
             self._noise_of = None
             return self._noise_level
-        if self._noise_kernel:
+        if self._noise_kernel and self._k is not None:
             h, w = self.shape[:2]
             self._k.noise_sums(frame.reshape(h, w * 3), self.downscale, self._sub2, self._t, self._sub_blur1,
                                self._acc, self._sums)
@@ -216,7 +214,13 @@ class FrameWork:
         """The thumbnail's fit: ``tmodel`` = gain x ``bg_thumb`` + offset (``model`` as in :meth:`changed`),
         ``inl`` 255 where |``thumb`` - ``tmodel``| <= ``tol`` on every channel, else 0; returns the count
         of 255 cells. Thumbnails: rows x cols x 3 float32; ``inl`` rows x cols uint8."""
-        return int(self._k.residual(bg_thumb, model, thumb, tmodel, inl, tol))
+        if self._k is not None:
+            return int(self._k.residual(bg_thumb, model, thumb, tmodel, inl, tol))
+        cv2.transform(bg_thumb, model, dst=tmodel)
+        diff = cv2.absdiff(thumb, tmodel, dst=self._tdiff)  # a new array where the shapes differ
+        self._tol3.fill(float(tol))
+        cv2.inRange(diff, self._zero3, self._tol3, dst=inl)
+        return cv2.countNonZero(inl)
 
     def fit(self, bg_thumb: np.ndarray, thumb: np.ndarray, y: np.ndarray, model: np.ndarray, tmodel: np.ndarray,
             inl: np.ndarray, tol: np.float32) -> None:
@@ -227,11 +231,18 @@ class FrameWork:
         uint8) as float32; ``tmodel`` and ``inl`` are left as :meth:`residual` made them for the
         current model. The means and deviations as ``cv2.meanStdDev`` / ``cv2.mean`` make them (sums in
         float64 cell by cell, times 1 / count), the gain from them as the gate always made it."""
-        if self._k.fit_sums(bg_thumb, thumb, y, model, tmodel, inl, tol, self._fit_sums) >= inl.size // 2:
+        if self._k is not None:
+            fits = self._k.fit_sums(bg_thumb, thumb, y, model, tmodel, inl, tol, self._fit_sums) >= inl.size // 2
+        else:
+            np.copyto(y, thumb, casting="unsafe")
+            fits = self.residual(bg_thumb, y, model, tmodel, inl, tol) >= inl.size // 2
+        if fits and self._k is not None:
             self._moments = self._masked_moments()
-        else:  # every cell: OpenCV's own means (its mean without a mask adds in another order)
-            mx, sx = cv2.meanStdDev(bg_thumb)
-            means_y, means_xy = cv2.mean(y), cv2.mean(cv2.multiply(bg_thumb, y))
+        else:  # OpenCV's own means (the kernel's masked sums equal them; its unmasked mean adds in another order)
+            mask = inl if fits else None
+            mx, sx = cv2.meanStdDev(bg_thumb, mask=mask)
+            prod = cv2.multiply(bg_thumb, y, dst=self._tprod)  # a new array where the shapes differ
+            means_y, means_xy = cv2.mean(y, mask=mask), cv2.mean(prod, mask=mask)
             self._moments = [(float(mx[c, 0]), float(sx[c, 0]), means_y[c], means_xy[c]) for c in range(3)]
         for c, (m, sd, my, mxy) in enumerate(self._moments):
             var = sd ** 2  # pow, not sd * sd: they differ in the last bit now and then
@@ -260,6 +271,9 @@ class FrameWork:
         """(area: the nonzero pixels of ``mask``, deformation: the largest per-channel mean of ``ad``
         over them, grey levels; 0.0 for an empty mask), as ``cv2.countNonZero`` and ``cv2.mean``
         with the mask give them."""
+        if self._k is None:
+            n = cv2.countNonZero(self.mask)
+            return (n, float(max(cv2.mean(self.ad, mask=self.mask)[:3]))) if n else (0, 0.0)
         n = int(self._k.masked_sums(self.mask, self.ad, self._sums))
         return (n, self._level(1.0 / n)) if n else (0, 0.0)
 
@@ -269,5 +283,12 @@ class FrameWork:
 
         bg: h x w x 3 float32 (the background); model: the 3 x 4 float32 photometric matrix
         (diagonal gain, offset in the last column; what ``cv2.transform`` would apply)."""
-        return int(self._k.changed(bg.reshape(self._ad2.shape), model, self._work2, self._ad2, self.mask, self.ub,
-                                   self._gt, self._ot))
+        if self._k is not None:
+            return int(self._k.changed(bg.reshape(self._ad2.shape), model, self._work2, self._ad2, self.mask,
+                                       self.ub, self._gt, self._ot))
+        cv2.transform(bg, model, dst=self._model_img)
+        cv2.convertScaleAbs(self._model_img, dst=self._model_u8)
+        cv2.absdiff(self.work, self._model_u8, dst=self.ad)
+        cv2.inRange(self.ad, self._zero3, self._thr3, dst=self.mask)
+        cv2.bitwise_not(self.mask, dst=self.mask)
+        return cv2.countNonZero(self.mask)

@@ -17,11 +17,15 @@ import enum
 import math
 from dataclasses import dataclass, field
 
-from cyclonedds.idl import IdlStruct
-from cyclonedds.idl.types import byte, float64, int32, sequence, uint8, uint32
+from ..errors import require
 
-from ..reading import Flags, ForceReading
-from .ros2_names import StampClock
+require("cyclonedds", "ros2", "the ROS 2 messages (CDR encoding)")  # names the extra where it is missing
+
+from cyclonedds.idl import IdlStruct  # noqa: E402
+from cyclonedds.idl.types import byte, float64, int32, sequence, uint8, uint32  # noqa: E402
+
+from ..reading import Flags, ForceReading  # noqa: E402
+from .ros2_names import StampClock  # noqa: E402
 
 
 # -- the ROS 2 types --------------------------------------------------------------------------

@@ -19,16 +19,24 @@ _TOKEN = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 def ros_topic(name: str, what: str = "ROS 2 topic") -> str:
     """A ROS 2 topic name made absolute ('tactile/force' -> '/tactile/force').
 
-    Raises SceneError (a ValueError) naming ``what`` when it is not a valid ROS 2 name
-    (tokens of letters, digits and '_' not starting with a digit, separated by single '/').
+    ROS 2's rules for a name (rcl's topic name validation): tokens of letters, digits and '_',
+    none starting with a digit, separated by single '/', no '/' at the end, no white space
+    anywhere. Raises SceneError (a ValueError) naming ``what`` otherwise; a private name
+    ('~/force') is refused here, naming where it is supported (the Zenoh output, which has a node
+    to expand it: :func:`~tactile_force.edge.outputs.zenoh_topic.resolve_topic`).
     """
-    if not isinstance(name, str) or not name.strip().strip("/"):
+    if not isinstance(name, str) or not name.strip("/"):
         raise SceneError(f"{what} {name!r}: empty; expected a name such as /tactile/force")
-    tokens = name.strip().lstrip("/").split("/")
+    if name.startswith("~"):
+        raise SceneError(f"{what} {name!r}: a private name ('~/...') needs a node to expand it; only the Zenoh "
+                         "output has one (its topic may be '~/force'); give a relative or absolute name here")
+    body = name[1:] if name.startswith("/") else name
+    tokens = body.split("/")
     bad = [t for t in tokens if not _TOKEN.match(t)]
     if bad:
+        part = "an empty part ('//' or a '/' at the end)" if "" in bad else repr(bad[0])
         raise SceneError(f"{what} {name!r}: not a valid ROS 2 name (expected tokens of letters, digits and '_', "
-                         f"not starting with a digit, separated by single '/'; bad part: {bad[0]!r})")
+                         f"not starting with a digit, separated by single '/'; bad part: {part})")
     return "/" + "/".join(tokens)
 
 

@@ -37,22 +37,29 @@ MODES = ("client", "peer")
 DEFAULT_TOPIC = "tactile/force"
 DEFAULT_NODE = "tactile_force"
 _ENDPOINT = re.compile(r"^[a-z][a-z0-9-]*/\S+$")
+_NODE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 #: Zenoh's reconnection to a lost router: first try after 0.1 s, doubling to 1 s.
 _RETRY = {"period_init_ms": 100, "period_max_ms": 1000, "period_increase_factor": 2}
 
 
-def resolve_topic(topic: str, namespace: str = "/") -> str:
-    """A topic as ROS resolves it in ``namespace``: absolute ('/x') as is, relative ('x')
-    under the namespace; SceneError naming the bad name."""
-    ns = check_namespace(namespace)
-    if isinstance(topic, str) and topic.strip().startswith("/"):
+def resolve_topic(topic: str, namespace: str = "/", node: str = DEFAULT_NODE) -> str:
+    """A topic as ROS 2 resolves it for ``node`` in ``namespace``: absolute ('/x') as is, relative
+    ('x') under the namespace, private ('~' or '~/x') under the namespace and the node's name;
+    SceneError naming the bad name (ROS 2's rules, :func:`~.ros2_names.ros_topic`)."""
+    ns = check_namespace(namespace).rstrip("/")
+    if isinstance(topic, str) and topic.startswith("~"):
+        if topic != "~" and not topic.startswith("~/"):
+            raise SceneError(f"Zenoh topic {topic!r}: a private name is '~' or '~/NAME' (ROS 2's rules)")
+        return ros_topic(f"{ns}/{check_node_name(node)}{topic[1:]}", "Zenoh topic")
+    if isinstance(topic, str) and topic.startswith("/"):
         return ros_topic(topic, "Zenoh topic")
     ros_topic(topic, "Zenoh topic")  # the name's own check
-    return ros_topic(ns.rstrip("/") + "/" + topic.strip(), "Zenoh topic")
+    return ros_topic(ns + "/" + topic, "Zenoh topic")
 
 
 def check_namespace(namespace: str) -> str:
-    """'/' or an absolute ROS name ('/left_hand'); SceneError otherwise."""
+    """'/' or an absolute ROS 2 namespace ('/left_hand'; rcl's rules: no '//', no '/' at the end, no
+    white space); SceneError otherwise."""
     if namespace == "/":
         return namespace
     if not isinstance(namespace, str) or not namespace.startswith("/"):
@@ -61,22 +68,39 @@ def check_namespace(namespace: str) -> str:
 
 
 def check_node_name(name: str) -> str:
-    """A ROS node name: letters, digits and '_', not starting with a digit."""
-    bad = SceneError(f"Zenoh node name {name!r}: expected letters, digits and '_', not starting with a digit")
-    if not isinstance(name, str) or "/" in name:
-        raise bad
-    try:
-        ros_topic(name)  # the one rule for a ROS name's token
-    except SceneError:
-        raise bad from None
+    """A ROS 2 node name (rmw's rules): letters, digits and '_', not starting with a digit, at most
+    255 characters, no white space."""
+    if not isinstance(name, str) or not _NODE.match(name) or len(name) > 255:
+        raise SceneError(f"Zenoh node name {name!r}: expected letters, digits and '_', not starting with a digit "
+                         "(ROS 2's rules for a node name)")
     return name
 
 
+#: Zenoh's link protocols; those of an IP link need HOST:PORT with a port 1..65535
+_IP_PROTOCOLS = ("tcp", "udp", "tls", "quic", "ws")
+_OTHER_PROTOCOLS = ("unixsock-stream", "unixpipe", "serial", "vsock")
+_HOST_PORT = re.compile(r"^(?:\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9.-]+):(\d{1,5})$")
+
+
 def check_endpoint(endpoint: str) -> str:
-    """A Zenoh locator such as 'tcp/192.168.1.10:7447'."""
-    if not isinstance(endpoint, str) or not _ENDPOINT.match(endpoint.strip()):
-        raise SceneError(f"Zenoh endpoint {endpoint!r}: expected PROTOCOL/ADDRESS such as {DEFAULT_ENDPOINT!r}")
-    return endpoint.strip()
+    """A Zenoh locator to connect to, such as 'tcp/192.168.1.10:7447' (Zenoh's rules: a known
+    protocol; for an IP link, HOST:PORT with the port in 1..65535; no white space); SceneError
+    naming what is wrong otherwise."""
+    bad = f"Zenoh endpoint {endpoint!r}: "
+    if not isinstance(endpoint, str) or not _ENDPOINT.match(endpoint):
+        raise SceneError(bad + f"expected PROTOCOL/ADDRESS such as {DEFAULT_ENDPOINT!r}")
+    proto, _, rest = endpoint.partition("/")
+    address = rest.split("?", 1)[0].split("#", 1)[0]
+    if proto not in _IP_PROTOCOLS + _OTHER_PROTOCOLS:
+        raise SceneError(bad + f"unknown protocol {proto!r}; expected one of {', '.join(_IP_PROTOCOLS)} "
+                         f"(or {', '.join(_OTHER_PROTOCOLS)})")
+    if proto in _IP_PROTOCOLS:
+        m = _HOST_PORT.match(address)
+        if m is None:
+            raise SceneError(bad + f"expected HOST:PORT after '{proto}/', such as {DEFAULT_ENDPOINT!r}")
+        if not 1 <= int(m.group(1)) <= 65535:
+            raise SceneError(bad + f"port {int(m.group(1))} is outside 1..65535")
+    return endpoint
 
 
 def session_config(endpoint: str, mode: str, connect_timeout_s: float) -> Any:
@@ -153,9 +177,27 @@ class ZenohPublisher:
                  qos: str = "sensor_data", diagnostics: bool = True, interval: bool = True,
                  stamp_clock: StampClock | None = None, retry: bool = False, connect_timeout_s: float = 3.0,
                  retry_period_s: float = 0.5) -> None:
+        from ..checks import expect
+
+        expect(topic, str, "ZenohPublisher.topic", nonempty=True)
+        expect(namespace, str, "ZenohPublisher.namespace")
+        expect(node, str, "ZenohPublisher.node", nonempty=True)
+        expect(endpoint, str | None, "ZenohPublisher.endpoint")
+        expect(mode, str, "ZenohPublisher.mode")
+        if mode not in ("client", "peer"):
+            from ..errors import OptionsError
+
+            raise OptionsError(f"ZenohPublisher.mode={mode!r}: expected 'client' or 'peer'")
+        expect(domain_id, int | None, "ZenohPublisher.domain_id", ge=0, le=232)
+        expect(qos, str, "ZenohPublisher.qos")
+        for flag, value in (("diagnostics", diagnostics), ("interval", interval), ("retry", retry)):
+            expect(value, bool, f"ZenohPublisher.{flag}")
+        expect(stamp_clock, StampClock | None, "ZenohPublisher.stamp_clock", "a StampClock or None (the default)")
+        expect(connect_timeout_s, float, "ZenohPublisher.connect_timeout_s", "a number of seconds > 0", gt=0)
+        expect(retry_period_s, float, "ZenohPublisher.retry_period_s", "a number of seconds > 0", gt=0)
         self.namespace = check_namespace(namespace)
         self.node = check_node_name(node)
-        force = resolve_topic(topic, self.namespace)
+        force = resolve_topic(topic, self.namespace, self.node)
         self.topics = Ros2Topics(force, force + "/diagnostics" if diagnostics else None,
                                  force + "/interval" if interval else None)
         self.endpoint = check_endpoint(endpoint if endpoint is not None else DEFAULT_ENDPOINT)

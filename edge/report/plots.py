@@ -180,7 +180,7 @@ def _range(*arrays: Sequence[float] | np.ndarray, floor: float | None = None, pa
 
 
 def force_vs_time(t_s: np.ndarray, estimate_n: np.ndarray, truth_n: np.ndarray | None,
-                  path: str | os.PathLike) -> Path:
+                  path: str | os.PathLike, xlabel: str = "time (s)") -> Path:
     """Force against time: the estimate as red dots, the truth (when known) as a grey line.
 
     Parameters
@@ -193,6 +193,8 @@ def force_vs_time(t_s: np.ndarray, estimate_n: np.ndarray, truth_n: np.ndarray |
         True force in N (NaN where unknown).
     path : path
         The PNG to write.
+    xlabel : str
+        What ``t_s`` is (default "time (s)"; e.g. a frame index for a replay read unpaced).
 
     Returns
     -------
@@ -203,8 +205,9 @@ def force_vs_time(t_s: np.ndarray, estimate_n: np.ndarray, truth_n: np.ndarray |
     est = np.asarray(estimate_n, np.float64)
     truth = np.full_like(est, np.nan) if truth_n is None else np.asarray(truth_n, np.float64)
     fmax = max(1.0, float(np.nanmax(np.concatenate([est, truth, [1.0]]))))
-    tmax = max(float(t[-1]) if t.size else 1.0, 1e-6)
-    c = Canvas((0.0, tmax), (0.0, fmax), "time (s)", "normal force (N)")
+    t0 = float(t[0]) if t.size else 0.0
+    tmax = max(float(t[-1]) if t.size else 1.0, t0 + 1e-6)
+    c = Canvas((t0, tmax), (0.0, fmax), xlabel, "normal force (N)")
     c.line(t, truth, GREY, 2)
     c.points(t, est, RED, 2)
     c.legend("grey line: ground truth   red dots: estimate" if np.isfinite(truth).any() else "red dots: estimate")
@@ -280,9 +283,11 @@ def error_vs_latency(points: Sequence[ParetoPoint], budget_ms: float | None, pat
     c = Canvas(_range(xs, floor=0.0), _range(ys, floor=0.0) if ys else (0.0, 1.0), "p99 latency (ms)", ylabel,
                size=(900, 420))
     if budget_ms is not None:
-        c.vline(budget_ms, RED, f"budget {budget_ms:g} ms")
+        c.vline(budget_ms, RED)  # named in the legend row: a label in the plot could cover a point's
     front = pareto_front(points)
-    c.line([points[i].p99_ms for i in front], [points[i].error or 0.0 for i in front], GREEN, 1)
+    if len(front) > 1:
+        c.line([points[i].p99_ms for i in front], [points[i].error or 0.0 for i in front], GREEN, 1)
+    c.points([points[i].p99_ms for i in front], [points[i].error or 0.0 for i in front], GREEN, 9, filled=False)
     for i, p in enumerate(points):
         label = str(i + 1) if numbered else p.label
         if not math.isfinite(p.p99_ms):
@@ -300,7 +305,9 @@ def error_vs_latency(points: Sequence[ParetoPoint], budget_ms: float | None, pat
         c.text(p.p99_ms, p.error, label)
     if title:
         c.legend(title)
-    legend = "green: Pareto front"
+    legend = "green ring: Pareto front" if front else "no Pareto front (no point with an error and a p99)"
+    if budget_ms is not None:
+        legend += f"   red dashes: {budget_ms:g} ms budget"
     if any(not p.measured for p in points if p.error is not None):
         legend += "   ring: error from the bundle's manifest"
     if others:

@@ -125,8 +125,8 @@ class OutputSpec:
                 resolve_topic,
             )
 
-            self.topic = resolve_topic(DEFAULT_TOPIC if self.topic is None else self.topic, self.namespace)
-            check_node_name(self.node)
+            self.topic = resolve_topic(DEFAULT_TOPIC if self.topic is None else self.topic, self.namespace,
+                                       check_node_name(self.node))
             if self.endpoint is not None:
                 self.endpoint = check_endpoint(self.endpoint)
         else:

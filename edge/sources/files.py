@@ -152,6 +152,20 @@ class ReplayFolderSource(_FileSequenceSource):
     def __len__(self) -> int:
         return len(self._files)
 
+    def true_forces(self) -> int:
+        """How many frames carry a readable true force (N) in their label file (0 for a folder of
+        plain images); read from the label files, the images not decoded."""
+        if self._dataset is None:
+            return 0
+        n = 0
+        for i in self._dataset.ids:
+            try:
+                read_force_file(self._dataset.force_path(i))
+            except LabelError:
+                continue
+            n += 1
+        return n
+
     def _load(self, i: int) -> tuple[np.ndarray | None, float | None, dict]:
         path = self._files[i]
         if not path.is_file():

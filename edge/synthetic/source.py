@@ -63,6 +63,13 @@ class VirtualDigitSource(FrameSource):
             raise OptionsError(f"{c}.peak_n={tuple(peak_n)!r}: expected (low, high) with low <= high")
         expect(lead_in_s, float, f"{c}.lead_in_s", "seconds in [0, 3600]", **bounds(SPAN_S))
         expect(indenters, list[str] | None, f"{c}.indenters", "a list of indenter names, or None (the paper's 18)")
+        if indenters is not None:
+            from .indenters import INDENTERS
+
+            unknown = [n for n in indenters if n not in INDENTERS]
+            if unknown or not indenters:
+                raise OptionsError(f"{c}.indenters={indenters!r}: " + (f"unknown {unknown[0]!r}; " if unknown else
+                                   "empty; ") + f"expected names of {', '.join(INDENTERS)}")
         expect(edge_fraction, float, f"{c}.edge_fraction", ge=0, le=1)
         expect(led_drift, float, f"{c}.led_drift", ge=0)
         expect(realtime, bool, f"{c}.realtime")

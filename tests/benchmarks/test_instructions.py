@@ -82,8 +82,9 @@ def test_a_runtime_reading_counts_at_least_its_bare_call(tmp_path: Path) -> None
     for key in ("command", "commit", "cpu", "readings", "valgrind", "variants"):
         assert rec[key], key
     assert rec["readings"] == 20
-    (v,) = rec["variants"]
-    assert v["label"] == "RGBmod"
+    v, lean = rec["variants"]  # the compiled kernels, then the robot-side install's OpenCV path
+    assert (v["label"], v["path"], lean["label"], lean["path"]) == ("RGBmod", "compiled", "RGBmod (OpenCV path)",
+                                                                      "opencv")
     counts = v["counts"]
     assert {"runtime", "bare", "gate", "downscale", "downscale_opencv"} <= set(counts)
     for c in counts.values():
@@ -97,8 +98,13 @@ def test_a_runtime_reading_counts_at_least_its_bare_call(tmp_path: Path) -> None
     assert counts["downscale"]["groups"]["OpenCV"] == 0 < counts["downscale_opencv"]["groups"]["OpenCV"]
     assert counts["runtime"]["groups"]["onnxruntime"] >= 0.9 * counts["bare"]["groups"]["onnxruntime"]
     assert v["ratio"] == pytest.approx(counts["runtime"]["total"] / counts["bare"]["total"])
+    # the robot-side path: its downscale is OpenCV's, its gate costs more than the kernels' (the same bare call)
+    lc = lean["counts"]
+    assert lc["downscale"]["groups"]["OpenCV"] > 0 and lc["gate"]["total"] > counts["gate"]["total"]
+    assert lc["bare"]["total"] == pytest.approx(counts["bare"]["total"], rel=0.01)
     page = (out / "instructions.md").read_text()
     assert rec["cpu"] in page and rec["commit"] in page and "RGBmod" in page
+    assert "The robot-side path against the compiled kernels" in page
 
 
 def test_page_with_a_before_record_shows_the_goals_and_each_stage_before_and_after() -> None:

@@ -139,3 +139,26 @@ def test_the_precision_verify_finds_on_every_kind_of_graph(make_bundle, tmp_path
     facts = graph_facts(dyn)
     assert {"DynamicQuantizeLinear", "MatMulInteger"} <= set(facts.ops) and graph_precision(facts) == "int8-dynamic"
     assert graph_precision(graph_facts(src)) == "fp32" and list(facts.inputs) == ["x"]
+
+
+def test_a_manifest_whose_blocks_or_width_contradict_the_graph_fails_verify_and_every_loader(tmp_path, capsys,
+                                                                                               monkeypatch):
+    """The fast bundle's graph is one residual block per stage at width 1/8 (12 convolutions, a stem of
+    8 channels); a manifest claiming ResNet-18's blocks, one more block, or another width is refused by
+    verify and by load_bundle (every loader), naming the field and what the graph holds."""
+    import pytest
+    from tactile_force.edge.errors import BundleError
+    from tactile_force.edge.scene import shipped_bundles
+
+    _no_onnx(monkeypatch)
+    fast = shipped_bundles()["fast"]
+    rc, out = _verify(fast, capsys)
+    assert rc == 0, out
+    for i, (arch, said) in enumerate((({"blocks": [2, 2, 2, 2]}, "architecture.blocks [2, 2, 2, 2]"),
+                                      ({"blocks": [1, 1, 1, 2]}, "has 12 in 1 trunk"),
+                                      ({"width": 0.5}, "architecture.width 0.5"))):
+        lie = _edited(fast, tmp_path / f"lie{i}", lambda m, a=arch: m["architecture"].update(a))
+        rc, out = _verify(lie, capsys)
+        assert rc == 1 and said in out and "Traceback" not in out, out
+        with pytest.raises(BundleError, match=said.split(" ")[0]):
+            load_bundle(lie)

@@ -15,10 +15,15 @@ from tactile_force.edge.frames import TimedFrame
 from tactile_force.edge.runtime import build_depth_stage
 from tactile_force.edge.runtime.gating import GateStep
 
-from tests.conftest import shared_data
+from tests.conftest import compiled_kernels, shared_data
 from tests.edge.depth.oracle import oracle_depth
 
 MAPPING = "edge/assets/virtual_digit_depth.npz"
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _kernels():
+    compiled_kernels("gate", "depth")
 
 
 def _stage(name: str = "d") -> DepthStage:
@@ -52,7 +57,7 @@ def _gated(frames, background):
 
 @pytest.mark.parametrize("name", ["d", "rgbmod_d"])
 def test_shipped_depth_bundles_use_the_kernels(name):
-    assert _stage(name)._uses_kernels
+    assert _stage(name)._uses_kernels and _stage(name)._kernels is not None  # not the numpy path
 
 
 def test_full_resolution_and_float64_stay_on_numpy():

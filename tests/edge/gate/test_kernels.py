@@ -4,6 +4,7 @@ shapes (odd ones included) and on real frames, and the whole gate's results over
 
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
 
 import cv2
@@ -11,12 +12,19 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from tactile_force.edge import compiled_path
 from tactile_force.edge.gate import ContactGate, GateOptions
 from tactile_force.edge.gate import kernels as K
 from tactile_force.edge.gate.frame_work import FrameWork
 
-from tests.conftest import shared_data
+from tests.conftest import compiled_kernels, shared_data
 from tests.edge.gate.oracle import OracleGate, blur_cv, changed_cv, fit_cv, noise_cv, reduce_cv, residual_cv
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _kernels():
+    compiled_kernels("gate")
+
 
 _SETTINGS = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
@@ -30,6 +38,16 @@ def _image(seed: int, shape: tuple[int, ...], style: int) -> np.ndarray:
         return (rng.integers(0, 2, shape, dtype=np.uint8) * 255).astype(np.uint8)
     ramp = np.linspace(0, 255, int(np.prod(shape))).reshape(shape)
     return np.clip(ramp + rng.normal(0, 3, shape), 0, 255).astype(np.uint8)
+
+
+@contextlib.contextmanager
+def _path(opencv: bool):
+    """The OpenCV path of the robot-side install (kernel mode 'off') while the block runs, where asked."""
+    compiled_path.set_kernel_mode("off" if opencv else None)
+    try:
+        yield
+    finally:
+        compiled_path.set_kernel_mode(None)
 
 
 def _work(frame: np.ndarray, k: int, blur: int = 3) -> FrameWork:
@@ -86,8 +104,10 @@ def test_noise_level_equals_opencv(k, h, w, seed, style):
 
 @_SETTINGS
 @given(h=st.integers(1, 19), w=st.integers(1, 19), seed=st.integers(0, 2**31),
-       threshold=st.sampled_from([10.0, 10.5, 11.5, 0.4, 3.2, 28.0, 254.6, 255.0]), identity=st.booleans())
-def test_changed_mask_and_difference_equal_opencv(h, w, seed, threshold, identity):
+       threshold=st.sampled_from([10.0, 10.5, 11.5, 0.4, 3.2, 28.0, 254.6, 255.0]), identity=st.booleans(),
+       opencv=st.booleans())
+def test_changed_mask_and_difference_equal_opencv(h, w, seed, threshold, identity, opencv):
+    """Both paths (``opencv``: the robot-side install's calls) against the oracle."""
     rng = np.random.default_rng(seed)
     work = rng.integers(0, 256, (h, w, 3), dtype=np.uint8)
     bg = (rng.random((h, w, 3)) * 320 - 30).astype(np.float32)  # below 0 and above 255: |x|, saturation
@@ -97,7 +117,9 @@ def test_changed_mask_and_difference_equal_opencv(h, w, seed, threshold, identit
     else:
         model[[0, 1, 2], [0, 1, 2]] = (rng.random(3) * 2.5 - 0.5).astype(np.float32)
         model[:, 3] = (rng.random(3) * 120 - 60).astype(np.float32)
-    fw = FrameWork((h, w, 3), 1, 1, threshold)
+    with _path(opencv):
+        fw = FrameWork((h, w, 3), 1, 1, threshold)
+    assert (fw._k is None) == opencv
     np.copyto(fw.work, work)
     n = fw.changed(bg, model)
     ad, mask = changed_cv(work, bg, model, threshold)
@@ -133,8 +155,9 @@ def test_thumbnail_fit_equals_opencv(rows, cols, seed, tol, near):
 
 @settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(rows=st.integers(2, 17), cols=st.integers(2, 23), seed=st.integers(0, 2**31),
-       tol=st.sampled_from([8.0, 2.7, 40.0, 1e-7]), scene=st.sampled_from(["near", "changed", "dark", "flat"]))
-def test_photometric_fit_equals_opencv(rows, cols, seed, tol, scene):
+       tol=st.sampled_from([8.0, 2.7, 40.0, 1e-7]), scene=st.sampled_from(["near", "changed", "dark", "flat"]),
+       opencv=st.booleans())
+def test_photometric_fit_equals_opencv(rows, cols, seed, tol, scene, opencv):
     """The fitted gain and offset, to the float32 bit, and the float32 thumbnail: over the cells
     that fit (``near``: most do), over every cell (``changed``: few do), with a background that
     decayed towards 0 in places (``dark``: values across 40 binades, where the order of the sums
@@ -152,7 +175,8 @@ def test_photometric_fit_equals_opencv(rows, cols, seed, tol, scene):
     noise = 2.0 if scene != "changed" else 60.0
     thumb = np.clip(bg * model.diagonal() + model[:, 3] + rng.normal(0, noise, bg.shape), 0, 255).astype(np.uint8)
     ref_model, ref_y = fit_cv(bg, thumb, model, tol)
-    fw = FrameWork((4 * rows, 4 * cols, 3), 4, 3, 10.0)
+    with _path(opencv):
+        fw = FrameWork((4 * rows, 4 * cols, 3), 4, 3, 10.0)
     y, tmodel, inl = np.empty_like(bg), np.empty_like(bg), np.empty((rows, cols), np.uint8)
     got = model.copy()
     fw.fit(bg, thumb, y, got, tmodel, inl, np.float32(tol))
@@ -170,10 +194,11 @@ def test_photometric_fit_equals_opencv(rows, cols, seed, tol, scene):
 
 @_SETTINGS
 @given(h=st.integers(1, 31), w=st.integers(1, 31), seed=st.integers(0, 2**31),
-       fill=st.sampled_from([0.0, 0.01, 0.5, 1.0]))
-def test_contact_area_and_deformation_equal_opencv(h, w, seed, fill):
+       fill=st.sampled_from([0.0, 0.01, 0.5, 1.0]), opencv=st.booleans())
+def test_contact_area_and_deformation_equal_opencv(h, w, seed, fill, opencv):
     rng = np.random.default_rng(seed)
-    fw = FrameWork((4 * h, 4 * w, 3), 4, 3, 10.0)
+    with _path(opencv):
+        fw = FrameWork((4 * h, 4 * w, 3), 4, 3, 10.0)
     fw.mask[...] = np.where(rng.random((h, w)) < fill, rng.integers(1, 256, (h, w)), 0).astype(np.uint8)
     fw.ad[...] = rng.integers(0, 256, (h, w, 3), dtype=np.uint8)
     area, deformation = fw.contact_stats()
@@ -268,14 +293,19 @@ def _virtual_sequence() -> list[np.ndarray]:
                                      GateOptions(downscale=3), GateOptions(blur=5), GateOptions(trust=False),
                                      GateOptions.gelsight_mini()],
                          ids=["default", "x2", "x8", "x3", "blur5", "no-trust", "gelsight-mini"])
-def test_the_gate_equals_its_opencv_oracle_over_a_virtual_sequence(options):
+@pytest.mark.parametrize("path", ["compiled", "opencv"])
+def test_the_gate_equals_its_opencv_oracle_over_a_virtual_sequence(options, path, kernel_mode):
+    """Both of the package's paths: the compiled kernels, and the OpenCV calls of the robot-side install."""
+    kernel_mode("off" if path == "opencv" else None)
     results = _run_both(_virtual_sequence(), options)
     if options.trust and options.downscale == 4:  # the sequence exercises what it is meant to
         assert any(r.contact for r in results) and any(r.invalid for r in results)
         assert any(r.mismatch for r in results) and any(not r.contact for r in results[12:])
 
 
-def test_the_gate_equals_its_opencv_oracle_on_the_real_aurova_grasp():
+@pytest.mark.parametrize("path", ["compiled", "opencv"])
+def test_the_gate_equals_its_opencv_oracle_on_the_real_aurova_grasp(path, kernel_mode):
+    kernel_mode("off" if path == "opencv" else None)
     background = cv2.imread(str(shared_data("digit_backgrounds", "aurova_background_b.png")), cv2.IMREAD_COLOR)
     frames = [f for f in _real_frames() if f.shape == background.shape]
     results = _run_both(frames, GateOptions(), np.ascontiguousarray(background))
