@@ -86,6 +86,29 @@ def _summary_lines(stats, runtime) -> list[str]:
 
 
 
+def _delivery(sinks: list, readings: int) -> tuple[list[str], bool]:
+    """One line per network output (Zenoh, ROS 2 topic: what it published and dropped), and whether
+    every output the run was given delivered nothing while there were readings (files always
+    deliver; the terminal's reading lines are not an output given)."""
+    lines, nothing = [], []
+    for s in sinks:
+        if not hasattr(s, "published"):
+            continue
+        topics = getattr(s, "topics", None)
+        where = " ".join(str(x) for x in (getattr(s, "endpoint", None), topics.force if topics is not None else
+                                          getattr(s, "topic", None)) if x)
+        dropped = int(getattr(s, "dropped", 0))
+        lines.append(f"output {type(s).__name__} {where}: published {s.published}, dropped {dropped}"
+                     + (" - DELIVERED NOTHING" if readings and not s.published else ""))
+        nothing.append(bool(readings) and not s.published)
+    from ..outputs import StdoutWriter
+
+    # what the run was asked to deliver to: the terminal's lines are beside every output, not one
+    outputs = [s for s in sinks if not isinstance(s, StdoutWriter)]
+    only_network = bool(outputs) and all(hasattr(s, "published") for s in outputs)
+    return lines, only_network and all(nothing)
+
+
 class LearningStatus:
     """A reading sink that says when a sensor's background has been learnt:
     ``left: background learnt from 5 frames`` on ``stream`` (the live status line shows
@@ -257,13 +280,18 @@ def main(args: argparse.Namespace) -> int:
             readings.append(r)
         stop.check()
 
+    from ..report.keep_up import KeepUpWatch
+
+    keep_up = KeepUpWatch()
     try:
         with stop:
-            stats = rt.run([*built.sinks, status], max_frames=limit, on_reading=on_reading)
+            stats = rt.run([*built.sinks, status, keep_up], max_frames=limit, on_reading=on_reading)
     finally:
         status.close()
         built.close()  # closes every output: an MCAP log gets its summary and footer
-    print("\n".join(_summary_lines(stats, rt) + truth_lines(readings)), file=sys.stderr)
+    delivery, delivered_nothing = _delivery(built.sinks, stats.readings)
+    print("\n".join(_summary_lines(stats, rt) + [s for s in [keep_up.summary()] if s] + delivery
+                    + truth_lines(readings)), file=sys.stderr)
     if readings and (plot := replay_plot_path(args.out, scene)) is not None:
         from ..sources import ReplayFolderSource, VideoFileSource
 
@@ -282,6 +310,9 @@ def main(args: argparse.Namespace) -> int:
     if stats.source_errors == len(rt.sensors):
         raise CheckFailedError("every sensor was lost during the run: "
                                + "; ".join(f"{s.name}: {s.error}" for s in rt.sensors))
+    if delivered_nothing:
+        raise CheckFailedError(f"no output delivered any of the run's {stats.readings} readings: "
+                               + "; ".join(delivery))
     return 0
 
 

@@ -13,7 +13,7 @@ import time
 
 from ..errors import SceneError
 
-_TOKEN = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+_TOKEN = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*\Z")
 
 
 def ros_topic(name: str, what: str = "ROS 2 topic") -> str:

@@ -36,8 +36,8 @@ DEFAULT_ENDPOINT = "tcp/localhost:7447"
 MODES = ("client", "peer")
 DEFAULT_TOPIC = "tactile/force"
 DEFAULT_NODE = "tactile_force"
-_ENDPOINT = re.compile(r"^[a-z][a-z0-9-]*/\S+$")
-_NODE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+_ENDPOINT = re.compile(r"^[a-z][a-z0-9-]*/\S+\Z")
+_NODE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*\Z")
 #: Zenoh's reconnection to a lost router: first try after 0.1 s, doubling to 1 s.
 _RETRY = {"period_init_ms": 100, "period_max_ms": 1000, "period_increase_factor": 2}
 
@@ -79,7 +79,7 @@ def check_node_name(name: str) -> str:
 #: Zenoh's link protocols; those of an IP link need HOST:PORT with a port 1..65535
 _IP_PROTOCOLS = ("tcp", "udp", "tls", "quic", "ws")
 _OTHER_PROTOCOLS = ("unixsock-stream", "unixpipe", "serial", "vsock")
-_HOST_PORT = re.compile(r"^(?:\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9.-]+):(\d{1,5})$")
+_HOST_PORT = re.compile(r"^(?:\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9.-]+):(\d{1,5})\Z")
 
 
 def check_endpoint(endpoint: str) -> str:
