@@ -29,13 +29,13 @@ def _child(bundle: str, calls: int) -> None:
     import numpy as np
     import onnxruntime as ort
     from tactile_force.edge.bundle.store import load_bundle
-    from tactile_force.edge.model.onnx_model import session_options
+    from tactile_force.edge.model.onnx_model import bundle_session_options
 
     from .harness.client_requests import Segment, on_valgrind
 
     on_valgrind()  # the request compiled before anything is counted
     b = load_bundle(bundle)
-    sess = ort.InferenceSession(str(b.onnx_path), session_options(1), providers=["CPUExecutionProvider"])
+    sess = ort.InferenceSession(str(b.onnx_path), bundle_session_options(b, 1), providers=["CPUExecutionProvider"])
     rng = np.random.default_rng(0)
     feed = {}
     for spec in b.manifest.inputs:

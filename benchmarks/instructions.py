@@ -85,7 +85,7 @@ class _Setup:
         from tactile_force.edge.frames import TimedFrame
         from tactile_force.edge.gate import GateOptions
         from tactile_force.edge.gate.frame_work import FrameWork
-        from tactile_force.edge.model.onnx_model import OnnxForceModel, session_options
+        from tactile_force.edge.model.onnx_model import OnnxForceModel, bundle_session_options
         from tactile_force.edge.runtime import ForceRuntime, RuntimeOptions, Sensor
         from tactile_force.edge.runtime.depth_factory import build_depth_stage
         from tactile_force.edge.runtime.gating import GateStep
@@ -122,7 +122,8 @@ class _Setup:
                 depth.append(res.depth.copy())
         self.reduced, self.masks = reduced, masks
         # the bare graph: the same reduced inputs the runtime hands its model
-        self.sess = ort.InferenceSession(str(bundle.onnx_path), session_options(1), providers=["CPUExecutionProvider"])
+        self.sess = ort.InferenceSession(str(bundle.onnx_path), bundle_session_options(bundle, 1),
+                                         providers=["CPUExecutionProvider"])
         self.out = [manifest.output.name]
         feeds = []
         for k in range(len(rgb)):

@@ -154,6 +154,9 @@ def configure_quantize(p: argparse.ArgumentParser) -> None:
     p.add_argument("--bins", type=within(int, Check(ge=2, le=1_000_000)), default=2048,
                    help="histogram bins for entropy/percentile (default 2048; entropy gets slow with more)")
     p.add_argument("--per-tensor", action="store_true", help="one weight scale per tensor instead of per channel")
+    p.add_argument("--weight-bits", type=int, choices=(7, 8), default=7,
+                   help="int8-static weights in 7 bits (default: exact with the fused int8 kernels on every CPU) or 8 "
+                        "(x86-64 CPUs without VNNI then run the graph unfused, slower: docs/runtime.md)")
     p.add_argument("--keep-float", nargs="+", default=[], metavar="NODE",
                    help="node names to leave in float (see 'tactile-force bundle show --nodes')")
     p.add_argument("--min-frames", type=within(int, READINGS), default=10,
@@ -176,7 +179,8 @@ def main_quantize(args: argparse.Namespace) -> int:
     opts = QuantizeOptions(mode=args.mode, method=args.method, per_channel=not args.per_tensor,
                            keep_float=list(args.keep_float), percentile=args.percentile, histogram_bins=args.bins,
                            min_calibration_frames=args.min_frames, max_calibration_frames=args.max_frames,
-                           overwrite=args.force, show_progress=True, background=args.background)
+                           overwrite=args.force, show_progress=True, background=args.background,
+                           weight_bits=args.weight_bits)
     b = quantize_bundle(args.bundle, args.out, opts, calibration=args.calib, eval_data=args.eval)
     _warn_data_stats("quantize", b)
     from tactile_force.edge.cli.bundle import describe_manifest

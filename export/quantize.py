@@ -80,6 +80,9 @@ class QuantizeOptions:
     overwrite: bool = False
     show_progress: bool = False
     float_head_inputs: bool = True
+    #: int8-static / int8-dynamic weights in 7 bits (|q| <= 64: exact with onnxruntime's fused kernels on every
+    #: CPU; 8 bits saturate on x86-64 without VNNI, edge/model/int8_host.py) or 8
+    weight_bits: int = 7
     #: a no-contact frame of the sensor the calibration frames come from (HxWx3 uint8 BGR or
     #: an image path): with it, statistics of the calibration frames go into the manifest's
     #: ``data_stats`` and the runtime flags frames outside them ``out_of_distribution``
@@ -173,7 +176,8 @@ def _static(pre_path: Path, out_path: Path, data: CalibrationData, exclude: list
     method = {"minmax": q.CalibrationMethod.MinMax, "entropy": q.CalibrationMethod.Entropy,
               "percentile": q.CalibrationMethod.Percentile}[o.method]
     common = dict(quant_format=q.QuantFormat.QDQ, per_channel=o.per_channel, activation_type=q.QuantType.QUInt8,
-                  weight_type=q.QuantType.QInt8, nodes_to_exclude=exclude, calibrate_method=method)
+                  weight_type=q.QuantType.QInt8, nodes_to_exclude=exclude, calibrate_method=method,
+                  reduce_range=o.weight_bits == 7)
     # quantize_static cannot set the histogram size, and its Entropy default (128 bins searched
     # over 128 quantized bins) can never clip, i.e. it equals MinMax. So the ranges are computed
     # here with options.histogram_bins bins and handed over through ORT's calibration cache.
@@ -197,7 +201,8 @@ def _static(pre_path: Path, out_path: Path, data: CalibrationData, exclude: list
         extra = {"CalibPercentile": o.percentile} if o.method == "percentile" else {}
         q.quantize_static(os.fspath(pre_path), os.fspath(out_path), FrameCalibrationReader(data, o.show_progress),
                           extra_options=extra, **common)
-    info: dict[str, object] = {"format": "QDQ", "activations": "uint8 (asymmetric)", "weights": "int8",
+    info: dict[str, object] = {"format": "QDQ", "activations": "uint8 (asymmetric)",
+                               "weights": "int8 (7-bit range)" if o.weight_bits == 7 else "int8",
             "per_channel": o.per_channel, "method": o.method, "calibration_data": data.source,
             "calibration_frames": len(data)}
     if o.method == "percentile":

@@ -165,13 +165,13 @@ class BareOnnxRuntime:
         from tactile_force.edge import load_bundle
         from tactile_force.edge.bundle.manifest import InputKind, Reduction
         from tactile_force.edge.gate.reduce import reduce_frames
-        from tactile_force.edge.model.onnx_model import session_options
+        from tactile_force.edge.model.onnx_model import bundle_session_options
 
         path = bundle or case.bundle
         if path is None:
             raise ValueError(f"BareOnnxRuntime: no bundle for {case.label}, {case.precision}")
         b = load_bundle(path)
-        self.sess = ort.InferenceSession(str(b.onnx_path), session_options(case.threads),
+        self.sess = ort.InferenceSession(str(b.onnx_path), bundle_session_options(b, case.threads),
                                          providers=["CPUExecutionProvider"])
         self.out = [b.manifest.output.name]
         self.pool = pool

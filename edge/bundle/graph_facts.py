@@ -32,6 +32,8 @@ from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from ..errors import BundleError
 from ..frames import FRAME_COLS, FRAME_ROWS
 
@@ -72,6 +74,9 @@ class GraphFacts:
     inputs: dict[str, GraphInput] = field(default_factory=dict)
     #: dims of the 4-D initializers (convolution weights: out, in, kernel rows, kernel cols)
     kernels: list[tuple[int, ...]] = field(default_factory=list)
+    #: the largest |value| of the int8 initializers (quantized weights; 0: none; 127 where not stored
+    #: as raw bytes): above 63 the weights use all 8 bits (:mod:`tactile_force.edge.model.int8_host`)
+    int8_weight_max: int = 0
 
 
 def _varint(buf: memoryview, i: int) -> tuple[int, int]:
@@ -195,6 +200,11 @@ def _graph(buf: memoryview, facts: GraphFacts, depth: int = 0) -> None:
             dims = _dims(v)
             if len(dims) == 4:
                 facts.kernels.append(dims)
+            if int(dtype or 0) == 3:  # int8
+                raw = _sub(v, 9)  # TensorProto.raw_data
+                top = int(np.abs(np.frombuffer(raw, np.int8).astype(np.int16)).max()) if raw is not None and len(raw) \
+                    else 127
+                facts.int8_weight_max = max(facts.int8_weight_max, top)
             name_b = _sub(v, 8)
             if name_b is not None:
                 weights.add(bytes(name_b).decode("utf-8", "replace"))

@@ -159,5 +159,10 @@ def main(args: argparse.Namespace) -> int:
     print(text_table(report))
     print(cpu_line(report.machine.cpu, report.machine.cores))  # the host every figure above was measured on
     print(f"Per-frame image work: {report.image_path}")
+    from ..model.int8_host import host_adds_in_16_bits
+
+    if host_adds_in_16_bits():
+        print("Int8 graphs with 8-bit weights run unfused on this CPU (x86-64 without VNNI: the fused kernels could "
+              "saturate; docs/runtime.md)")
     print("wrote " + ", ".join(str(args.out / n) for n in names))
     return 0 if report.passed else 1

@@ -18,6 +18,7 @@ image its contact gate reduced, so each frame is shrunk once). Full-resolution b
 
 from __future__ import annotations
 
+import logging
 import os
 import threading
 
@@ -37,10 +38,14 @@ DEPTH_SHAPE = (FRAME_ROWS, FRAME_COLS, 1)
 LOAD_BATCH = 2
 
 
-def session_options(threads: int = 1):
+_log = logging.getLogger(__name__)
+
+
+def session_options(threads: int = 1, exact_qdq: bool = False):
     """The onnxruntime session options every session of the package runs with: ``threads``
     intra-op threads, one inter-op thread, sequential execution, all graph optimisations,
-    warnings off (an ``onnxruntime.SessionOptions``)."""
+    warnings off (an ``onnxruntime.SessionOptions``); ``exact_qdq``: an int8 QDQ graph runs unfused,
+    as written (:mod:`.int8_host`: where the fused int8 kernels would saturate)."""
     import onnxruntime as ort
 
     so = ort.SessionOptions()
@@ -49,7 +54,25 @@ def session_options(threads: int = 1):
     so.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
     so.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL
     so.log_severity_level = 3
+    if exact_qdq:
+        so.add_session_config_entry("session.disable_quant_qdq", "1")
     return so
+
+
+def bundle_session_options(bundle: Bundle, threads: int = 1):
+    """:func:`session_options` for ``bundle``'s graph on this host: unfused where its int8 weights would
+    saturate the fused kernels here (:func:`.int8_host.exact_qdq_needed`)."""
+    return session_options(threads, exact_qdq=unfused_here(bundle))
+
+
+def unfused_here(bundle: Bundle) -> bool:
+    """Whether ``bundle``'s int8 graph runs unfused on this host (see :mod:`.int8_host`)."""
+    from ..bundle.graph_facts import graph_facts
+    from .int8_host import exact_qdq_needed
+
+    if bundle.manifest.precision.value not in ("int8-static", "int8-dynamic"):
+        return False
+    return exact_qdq_needed(graph_facts(bundle.onnx_path).int8_weight_max)
 
 
 class OnnxForceModel:
@@ -84,8 +107,16 @@ class OnnxForceModel:
         self.calibration = cal if calibrate else None
         self.threads = int(threads)
         self._lock = threading.Lock()  # predict: the bound buffers are shared by every caller
+        #: the int8 graph runs unfused on this host (its fused kernels would saturate: :mod:`.int8_host`)
+        self.unfused = unfused_here(self.bundle)
+        if self.unfused:
+            _log.info("%s: this CPU adds int8 products in 16 bits (x86-64 without VNNI) and the graph's weights "
+                         "use 8 bits: onnxruntime's fused int8 kernels could saturate, so the graph runs unfused, as "
+                         "written (the same forces as on any host; slower). A bundle quantized with 7-bit weights "
+                         "(tactile-force quantize) keeps the fused kernels", self.bundle.path)
         try:
-            self.session = ort.InferenceSession(str(self.bundle.onnx_path), session_options(self.threads),
+            self.session = ort.InferenceSession(str(self.bundle.onnx_path),
+                                                session_options(self.threads, exact_qdq=self.unfused),
                                                 providers=["CPUExecutionProvider"])
         except Exception as exc:  # ORT raises its own Fail/InvalidGraph types
             raise BundleError(f"{self.bundle.onnx_path}: ONNX Runtime cannot load the model ({exc})") from None

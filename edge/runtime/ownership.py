@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import enum
+import types
 from collections.abc import Iterator, Sequence
 from typing import TYPE_CHECKING
 
@@ -22,7 +23,9 @@ from ..errors import OptionsError
 if TYPE_CHECKING:
     from .options import Sensor
 
-_PLAIN = (str, bytes, int, float, complex, bool, tuple, frozenset, type(None), enum.Enum, np.ndarray, np.generic)
+#: values that hold no sensor's state (a module: code, such as the compiled kernels every stage runs)
+_PLAIN = (str, bytes, int, float, complex, bool, tuple, frozenset, type(None), enum.Enum, np.ndarray, np.generic,
+          types.ModuleType)
 
 
 def _state_objects(part: object) -> Iterator[tuple[str, object]]:
