@@ -128,9 +128,10 @@ def table(rows: list[InstallRow], bundles: list[str]) -> str:
         for b in bundles:
             warm = r.auto_warm_s.get(b)
             off = r.off_s[b]
-            out.append([r.python, f"{r.site_mb:.0f}", b, _f(r.floor_s), _f(off), f"+{off - r.floor_s:.2f}",
+            install = "with the fast extra" if r.numba else "robot-side (no extra)"
+            out.append([r.python, install, f"{r.site_mb:.0f}", b, _f(r.floor_s), _f(off), f"+{off - r.floor_s:.2f}",
                         _f(r.auto_cold_s.get(b)), _f(warm), "-" if warm is None else f"+{warm - r.floor_s:.2f}"])
-    return markdown_table(["interpreter", "site-packages MB", "bundle", "import floor s",
+    return markdown_table(["interpreter", "install", "site-packages MB", "bundle", "import floor s",
                            "first reading, robot-side path s", "over the floor",
                            "fast extra, empty cache s", "fast extra, compiled ahead s", "over the floor"], out)
 
@@ -154,7 +155,12 @@ def run(args, argv) -> int:
              "reading `ForceRuntime.step()` returns (a `VirtualDigitSource`, one thread), the process exiting "
              "at once. 'Robot-side path': `TACTILE_FORCE_KERNELS=off`, numba never imported, what an install "
              "without the `fast` extra runs. 'Empty cache': a new `XDG_CACHE_HOME` per run (a new container); "
-             "'compiled ahead': after `tactile-force kernels` (timed once below).")
+             "'compiled ahead': after `tactile-force kernels` (timed once below).\n\n"
+             "Why the kernels are compiled ahead and not in the background while OpenCV serves: numba holds the "
+             "interpreter lock while it compiles; a gate fed at 60 fps while a thread compiled its kernels (10 s) took "
+             "p99 55-135 ms per second (max 150 ms) instead of 0.4-0.6 ms, and loading them from the cache in a "
+             "thread still stalled the first second's readings up to 20 ms (AMD EPYC VM, measured when this mechanism was chosen, "
+             "an investigation not kept as code). Loading them when the gate is made costs the start-up above.")
     text = header("Start-up: process start to the first reading", command, machine, notes) + "\n".join([
         table(rows, bundles), "",
         markdown_table(["interpreter", "tactile-force kernels (compile, empty cache) s",

@@ -119,6 +119,9 @@ GONE: dict[str, dict[str, str]] = {
     "edge.scene": {"Key": _KEYS_GONE},
     "edge.scene.model": {"Key": _KEYS_GONE},
     "export.quantize": {"vars_of": "use dataclasses.asdict"},
+    "edge.gate.frame_work": {"load_kernels": "nothing compiles when a gate is made: tactile_force.edge.compiled_path "
+                                             "loads the compiled kernels from numba's cache (compile them once with "
+                                             "'tactile-force kernels', or compiled_path.load())"},
     "edge.runtime.prewarm": {"MARGIN_NS": "the margin before a frame is measured on the host (how early frames came "
                                           "against their prediction): Prewarm.lead_ns"},
 }

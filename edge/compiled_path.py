@@ -13,8 +13,9 @@ are the same on either path.
 
 :class:`KernelMode` (environment variable ``TACTILE_FORCE_KERNELS``, or :func:`set_kernel_mode`):
 
-- ``auto`` (default): with numba installed, the cached kernels (loading them: about 0.4 s, once
-  per process); without them, or without numba, the OpenCV / numpy path.
+- ``auto`` (default): with numba installed, the cached kernels (loading them: about 0.6 s, once
+  per process); without them (no index in the cache: numba is not even imported), or without
+  numba, the OpenCV / numpy path.
 - ``off``: the OpenCV / numpy path only; numba is never imported.
 - ``compile``: as ``auto``, but kernels missing from the cache are compiled when the gate or stage
   is made, and a line says so (``tactile-force kernels``, the benchmarks that count the compiled
@@ -124,6 +125,12 @@ def request(kind: str) -> None:
     with _lock:
         if kind in _loaded or (kind in _missing and mode is KernelMode.AUTO):
             return
+        if mode is KernelMode.AUTO and not _indexed(kind):  # never compiled here: not even numba is imported
+            _missing[kind] = "not compiled for this environment"
+            _log.warning("the %s's compiled kernels (numba) are installed but not compiled for this environment; "
+                         "this process takes the equal OpenCV / numpy path. Compile them once with: "
+                         "tactile-force kernels", _NAMES[kind])
+            return
         try:
             _load_one(kind, compile_missing=mode is KernelMode.COMPILE)
         except _NotCompiled:
@@ -159,6 +166,13 @@ def cache_dir() -> str:
         return str(user_set)
     base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
     return str(Path(base) / "tactile_force" / "numba")
+
+
+def _indexed(kind: str) -> bool:
+    """Whether numba's cache folder holds an index of ``kind``'s kernels (numba names its folder after the
+    kernels' source folder: gate_*, depth_*); without one nothing can load, and numba need not be
+    imported to find that out. An index from another numba or CPU is found out by loading."""
+    return any(Path(cache_dir()).glob(f"{kind}_*/kernels.*.nbi"))
 
 
 def _load_one(kind: str, compile_missing: bool) -> None:

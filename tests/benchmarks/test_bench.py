@@ -91,7 +91,7 @@ def _report_raw(cadence: dict | None) -> dict:
         bundle["cadence"] = cadence
     return {"schema": "tactile-force-bench/1", "budget_ms": 1.0, "threads": 1, "frames": 1000, "verdict": "PASS",
             "machine": {"cpu": "x", "cores": 1, "ram_gib": None, "os": "", "python": "", "versions": "",
-                        "background_load": ""}, "bundles": [bundle], "command": ""}
+                        "background_load": ""}, "bundles": [bundle], "command": "", "image_path": ""}
 
 
 def test_the_cadence_record_round_trips_and_an_older_report_still_reads():
