@@ -137,6 +137,8 @@ def main(args: argparse.Namespace) -> int:
         print(f"gate agrees with truth (contact <=> >= 1 N) on {100 * s.gate_agreement:.1f} % of frames")
     print("latency ms (p50 / p99): " + ", ".join(
         f"{k} {v['p50']:.2f}/{v['p99']:.2f}" for k, v in s.latency_ms.items() if not math.isnan(v["p50"])))
+    print("  (the virtual DIGIT renders its frames on this same CPU while the runtime reads them, so these "
+          "figures include that contention; 'tactile-force bench' measures the runtime alone on in-memory frames)")
     print(f"flags: {s.flags}")
     print(f"wrote {s.plot}, {s.readings_csv}, {s.summary_json}")
     return 0

@@ -129,6 +129,39 @@ def flag_named(message: str, parser: argparse.ArgumentParser) -> str:
     return message
 
 
+def path_flag_named(message: str, exc: OSError, args: argparse.Namespace, parser: argparse.ArgumentParser) -> str:
+    """``message`` led by the flag and path the user gave when the failing file ``exc.filename`` is that
+    path or lies under it (``--out results: error: results/.report.json: Permission denied``); the output
+    flags first, so a full disk under ``--out`` names ``--out`` even when an input sits beside it."""
+    import os
+    from pathlib import Path
+
+    if not exc.filename:  # a write into an open file (a full disk): the outputs the user gave are where
+        import errno
+
+        outs = getattr(args, "out", None)
+        outs = [o for o in (outs if isinstance(outs, list) else [outs]) if o]
+        if outs and exc.errno in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS, errno.EIO):
+            return f"--out {', '.join(str(o) for o in outs)}: {message} (while writing the outputs)"
+        return message
+    failed = Path(os.path.abspath(os.fsdecode(exc.filename)))
+    found = []
+    for action in parser._actions:  # argparse keeps its options here; no public accessor
+        flags = [f for f in action.option_strings if f.startswith("--")]
+        values = getattr(args, action.dest, None)
+        for value in values if isinstance(values, list) else [values]:
+            if flags and isinstance(value, (str, os.PathLike)) and str(value):
+                given = Path(os.path.abspath(os.fspath(value)))
+                staged = failed.parent == given.parent and failed.name.startswith(f".{given.name}.")  # its staging
+                if failed == given or given in failed.parents or staged or (given.parent == failed and
+                                                                           flags[0] == "--out"):
+                    found.append((flags[0] != "--out", -len(given.parts), flags[0], value))
+    if not found:
+        return message
+    _, _, flag, value = min(found)
+    return f"{flag} {value}: {message}"
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run one subcommand. Exit codes: 0 success, 1 a check failed, 2 bad input or usage,
     130 interrupted (SIGINT), 143 terminated (SIGTERM). ``--debug`` (anywhere, or
@@ -206,6 +239,8 @@ def _run(argv: list[str], signals: CliSignals) -> int:
         if debug:
             raise
         code, message = _exit_code(exc)
+        if isinstance(exc, OSError):
+            message = path_flag_named(message, exc, args, parser)
         print(f"tactile-force {name}: {flag_named(message, parser)}", file=sys.stderr)
         return code
     if signals.received is not None:  # the verb, or a library it called, caught the interrupt: never a success

@@ -141,3 +141,26 @@ def test_a_run_whose_only_output_delivered_nothing_says_so_and_does_not_exit_0(t
                                timeout=120)
     assert with_file.returncode == 0, with_file.stderr  # the CSV got every reading: the run delivered
     assert "DELIVERED NOTHING" in with_file.stderr and "late " in with_file.stderr
+
+
+@pytest.mark.parametrize("failed, errno_, want", [
+    ("ro/res/report.json", 13, "--out ro/res: error: ro/res/report.json: "),
+    ("ro/.res.1a2b.partial", 13, "--out ro/res: error: ro/.res.1a2b.partial: "),  # its staging folder beside it
+    ("ro", 30, "--out ro/res: error: ro: "),
+    ("bundles/b/model.json", 13, "--bundle bundles/b: error: bundles/b/model.json: "),
+    (None, 28, "--out ro/res: error: "),  # a full disk while writing an open file names the outputs
+    ("elsewhere/x", 13, "error: elsewhere/x: "),
+])
+def test_an_os_error_names_the_flag_and_path_the_user_gave(failed, errno_, want):
+    import argparse
+    import os
+    from pathlib import Path
+
+    from tactile_force.edge.cli.main import _exit_code, path_flag_named
+
+    p = argparse.ArgumentParser()
+    p.add_argument("--out", type=Path)
+    p.add_argument("--bundle", nargs="+")
+    args = p.parse_args(["--out", "ro/res", "--bundle", "bundles/b"])
+    exc = OSError(errno_, os.strerror(errno_), failed) if failed else OSError(errno_, os.strerror(errno_))
+    assert path_flag_named(_exit_code(exc)[1], exc, args, p).startswith(want)
