@@ -120,7 +120,9 @@ def scene_path_cases(folder: Path) -> list[Case]:
         (f"--scene {p.name} ({what})",
          lambda p=p, what=what: cli_verdict(["run", "--scene", str(p)], {2}, True, (str(p), what, "regular TOML file")))
         for p, what in ((as_folder, "is a folder"), (fifo, "is a FIFO"), (dangling, "symbolic link to a missing"))]
-    scene = default_bundle_dir().parents[1] / "scenes" / "replay_rgbmod.toml"  # edge/models/default -> edge/scenes
+    from tactile_force.edge.scene import PACKAGE_DIR
+
+    scene = PACKAGE_DIR / "scenes" / "replay_rgbmod.toml"
     for value, state in ((None, "is not set"), ("", "is empty")):
         def probe(value: str | None = value, state: str = state) -> Verdict:
             with _env("TACTILE_FORCE_SHARED_DATA", value):

@@ -159,8 +159,9 @@ def run(args, argv) -> int:
              "Why the kernels are compiled ahead and not in the background while OpenCV serves: numba holds the "
              "interpreter lock while it compiles; a gate fed at 60 fps while a thread compiled its kernels (10 s) took "
              "p99 55-135 ms per second (max 150 ms) instead of 0.4-0.6 ms, and loading them from the cache in a "
-             "thread still stalled the first second's readings up to 20 ms (AMD EPYC VM, measured when this mechanism was chosen, "
-             "an investigation not kept as code). Loading them when the gate is made costs the start-up above.")
+             "thread still stalled the first second's readings up to 20 ms (AMD EPYC VM, measured when this "
+             "mechanism was chosen, an investigation not kept as code). Loading them when the gate is made costs the "
+             "start-up above.")
     text = header("Start-up: process start to the first reading", command, machine, notes) + "\n".join([
         table(rows, bundles), "",
         markdown_table(["interpreter", "tactile-force kernels (compile, empty cache) s",

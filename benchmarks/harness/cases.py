@@ -165,10 +165,10 @@ def make_dataset(root: Path, n: int = 1, forces: list[float] | None = None) -> P
 
 
 def default_bundle_dir() -> Path:
-    """The default bundle of the installed package (edge/models/default)."""
-    import tactile_force.edge
+    """The default bundle of the installed package (edge/models/default: the package's one answer)."""
+    from tactile_force.edge.scene import default_bundle_path
 
-    return Path(tactile_force.edge.__file__).resolve().parent / "models" / "default"
+    return default_bundle_path()
 
 
 def toml_text(data: dict) -> str:
