@@ -10,6 +10,7 @@
     python -m benchmarks error --out docs/benchmarks      # shipped bundles: error vs run time -> error_vs_runtime.md
     python -m benchmarks instructions --out docs/benchmarks  # instructions per reading (callgrind) -> instructions.md
     python -m benchmarks startup --out docs/benchmarks    # process start -> first reading, per install -> startup.md
+    python -m benchmarks footprint --out docs/benchmarks  # cache lines of code and data one reading touches
 
 Results go to ``--out DIR`` (default out/benchmarks, git-ignored); docs/benchmarks only
 when it is named. Every page states the command, the commit of the code that measured, the
@@ -123,7 +124,7 @@ def _main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m benchmarks", description=(__doc__ or "").split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__)
     ap.add_argument("what", nargs="?", choices=(*TASKS, "robustness", "trust", "intervals", "cadence", "error",
-                                               "instructions", "startup"),
+                                               "instructions", "startup", "footprint"),
                     help="which page to make; 'robustness', 'trust', 'intervals', 'cadence', 'error' and "
                          "'instructions' are not part of 'all'")
     ap.add_argument("--rounds", type=within(int, COUNT), default=3,
@@ -131,7 +132,7 @@ def _main(argv: list[str] | None = None) -> int:
     ap.add_argument("--bench-runs", type=within(int, COUNT), default=10,
                     help="cadence: runs of the bench verdict on the default bundle (default 10; --quick: 2)")
     ap.add_argument("--readings", type=within(int, READINGS), default=0,
-                    help="instructions: readings counted per run (default 200; --quick: 20)")
+                    help="instructions, footprint: readings counted per run (default 200 and 20; --quick: 20 and 5)")
     ap.add_argument("--variants", nargs="*", default=None, choices=("default", "d", "rgbmod_d", "fast"),
                     help="instructions: the shipped bundles to count (default, d, rgbmod_d; default all)")
     ap.add_argument("--paths", nargs="*", default=None, choices=("compiled", "opencv"),
@@ -185,6 +186,10 @@ def _main(argv: list[str] | None = None) -> int:
         from .instructions import run as run_instructions
 
         return run_instructions(args, argv)
+    if args.what == "footprint":
+        from .footprint import run as run_footprint
+
+        return run_footprint(args, argv)
     if args.what == "startup":
         from .startup import run as run_startup
 

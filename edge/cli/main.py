@@ -241,6 +241,9 @@ def _run(argv: list[str], signals: CliSignals) -> int:
         code, message = _exit_code(exc)
         if isinstance(exc, OSError):
             message = path_flag_named(message, exc, args, parser)
+        out = getattr(args, "out", None)
+        if out is not None and not isinstance(out, list):  # the library's name for the folder a verb writes
+            message = message.replace(f"bundle destination {out}:", f"--out {out}:")
         print(f"tactile-force {name}: {flag_named(message, parser)}", file=sys.stderr)
         return code
     if signals.received is not None:  # the verb, or a library it called, caught the interrupt: never a success
