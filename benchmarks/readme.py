@@ -7,19 +7,30 @@ from pathlib import Path
 
 #: (page, what it holds, the command that makes it; "" for pages whose code was retired)
 PAGES = (
-    ("bench/report.md", "`tactile-force bench`, the installed robot-side verb (no torch): the three shipped "
-                        "bundles (RGBmod, D, RGBmod+D) through ForceRuntime on this host with the under-1 ms "
-                        "verdict per bundle (+ report.json, pareto.png)",
+    ("bench/report.md", "`tactile-force bench`, the installed robot-side verb (no torch): the four shipped "
+                        "bundles (RGBmod, RGBmod fast, D, RGBmod+D) through ForceRuntime on this host with the "
+                        "under-1 ms verdict per bundle and each graph alone at the cadence (+ report.json, "
+                        "pareto.png)",
      "tactile-force bench --out docs/benchmarks/bench"),
     ("cadence.md", "Latency at the sensor's cadence (60 fps): one sensor and eight phase-shifted against a bare "
                    "session at the same cadence, warm-ups off / on, where the cold time goes per stage, which parts "
-                   "of the warm-up pay, the bench verdict over 10 runs (+ cadence.json)",
+                   "of the warm-up pay, the bench verdict of the default and the fast bundle over several runs (+ "
+                   "cadence.json)",
      "python -m benchmarks cadence --out docs/benchmarks"),
     ("instructions.md", "Work per reading in instructions (valgrind's callgrind, load-independent): each shipped "
                         "bundle's ForceRuntime reading against its bare graph's call, per stage (gate, depth, glue "
                         "+ judge) and per library (onnxruntime, OpenCV, numpy, OpenBLAS, libc, the interpreter), "
-                        "before / after (+ instructions.json)",
+                        "on the compiled kernels and on the robot-side install's OpenCV path, before / after, and "
+                        "what each goal leaves for the checks beside the one downscale (+ instructions.json)",
      "python -m benchmarks instructions --out docs/benchmarks"),
+    ("footprint.md", "What one reading touches: the distinct cache lines of code and data of a ForceRuntime reading "
+                     "and of its bare graph call, per stage and shipped bundle (callgrind's cache simulator, "
+                     "load-independent; the cold cost at the sensor's cadence) (+ footprint.json)",
+     "python -m benchmarks footprint --out docs/benchmarks"),
+    ("startup.md", "Start-up: process start to the first reading, per install (robot-side, with the fast extra), "
+                   "with an empty and a warm cache, beside the import floor; the kernels' compile time; the demo's "
+                   "first and second run (+ startup.json)",
+     "python -m benchmarks startup --python ROBOT_VENV/bin/python --python DEV_VENV/bin/python --out docs/benchmarks"),
     ("depth_bundles.md", "The shipped compact D and RGBmod+D bundles: error on the synthetic test split through "
                          "ForceRuntime, and their total p50 against RGBmod interleaved",
      "python -m benchmarks.depth_bundles --write docs/benchmarks/depth_bundles.md"),
