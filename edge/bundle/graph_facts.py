@@ -260,6 +260,13 @@ def facts_by_sha256(digest: str, data: bytes, where: str | os.PathLike) -> Graph
     return facts
 
 
+def bundle_facts(onnx_path: str | os.PathLike, digest: str) -> GraphFacts:
+    """The facts of a loaded bundle's graph (``digest``: its sha256, checked by the loader): those read
+    when it was loaded, else read now."""
+    facts = _FACTS_BY_SHA256.get(digest)
+    return facts if facts is not None else facts_by_sha256(digest, Path(onnx_path).read_bytes(), onnx_path)
+
+
 def graph_precision(facts: GraphFacts) -> str:
     """The precision the graph holds, as a manifest's ``precision`` names it.
 
@@ -402,6 +409,6 @@ def _ops(facts: GraphFacts) -> str:
     return f"ops: {top}" if top else "no ops"
 
 
-__all__ = ["GraphFacts", "GraphInput", "architecture_problems", "bundle_precision", "facts_by_sha256",
+__all__ = ["GraphFacts", "GraphInput", "architecture_problems", "bundle_facts", "bundle_precision", "facts_by_sha256",
            "facts_of_bytes", "graph_facts", "graph_precision", "input_problems", "manifest_problems",
            "precision_problem"]

@@ -67,12 +67,12 @@ def bundle_session_options(bundle: Bundle, threads: int = 1):
 
 def unfused_here(bundle: Bundle) -> bool:
     """Whether ``bundle``'s int8 graph runs unfused on this host (see :mod:`.int8_host`)."""
-    from ..bundle.graph_facts import graph_facts
+    from ..bundle.graph_facts import bundle_facts
     from .int8_host import exact_qdq_needed
 
     if bundle.manifest.precision.value not in ("int8-static", "int8-dynamic"):
         return False
-    return exact_qdq_needed(graph_facts(bundle.onnx_path).int8_weight_max)
+    return exact_qdq_needed(bundle_facts(bundle.onnx_path, bundle.manifest.sha256).int8_weight_max)
 
 
 class OnnxForceModel:
