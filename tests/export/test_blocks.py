@@ -105,9 +105,12 @@ def test_export_records_blocks_and_a_manifest_without_them_means_resnet18(tmp_pa
     # the field is read from the manifest (the file hash covers the graph, not the record)
     copy = tmp_path / "copy"
     shutil.copytree(default_bundle_path(), copy)
-    raw["architecture"]["blocks"] = [1, 1, 1, 1]
+    raw["architecture"]["blocks"] = [1, 1, 1, 1]  # a claim the default's graph (two blocks per stage) contradicts
     (copy / "model.json").write_text(json.dumps(raw))
-    assert load_bundle(copy).manifest.architecture.blocks == [1, 1, 1, 1]
+    from tactile_force.edge.errors import BundleError
+
+    with pytest.raises(BundleError, match=r"architecture.blocks \[1, 1, 1, 1\] makes 12 convolutions"):
+        load_bundle(copy)
 
 
 def test_ladder_text_names_fewer_blocks():
