@@ -24,7 +24,6 @@ import argparse
 import gc
 import json
 import os
-import platform
 import re
 import subprocess
 import sys
@@ -220,20 +219,13 @@ def page(rec: Record) -> str:
 
 def run(args: argparse.Namespace, argv: list[str]) -> int:
     """``python -m benchmarks footprint``: count, write footprint.json then .md to ``args.out``."""
-    from tactile_force.edge.files.atomic import staged_file
-
-    from .harness.client_requests import SUPPORTED
     from .harness.machine import command_line, describe_machine
     from .harness.paths import source_commit
     from .instructions import PATHS, VARIANTS, _frames_file, models_dir
 
-    if callgrind.valgrind() is None:
-        print("footprint: valgrind is not installed on this host; the footprint needs valgrind's callgrind. Nothing "
-              "counted.", file=sys.stderr)
-        return 0
-    if not SUPPORTED:
-        print(f"footprint: callgrind's client requests are made here on x86-64 only, not {platform.machine()}. "
-              "Nothing counted.", file=sys.stderr)
+    why = callgrind.unavailable("footprint")
+    if why:
+        print(why, file=sys.stderr)
         return 0
     readings = args.readings if args.readings else (5 if args.quick else READINGS)
     t0 = time.monotonic()
@@ -248,10 +240,7 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
     m = describe_machine()
     rec = Record(command_line(argv), source_commit(), m.cpu, m.line(), readings, callgrind.version(), CACHES,
                  variants, time.monotonic() - t0)
-    args.out.mkdir(parents=True, exist_ok=True)
-    for name, text in (("footprint.json", json.dumps(asdict(rec), indent=1) + "\n"), ("footprint.md", page(rec))):
-        with staged_file(args.out / name) as tmp_file:
-            tmp_file.write_text(text)
+    callgrind.write_counted(args.out, "footprint", json.dumps(asdict(rec), indent=1) + "\n", page(rec))
     print(f"wrote {args.out / 'footprint.md'}")
     return 0
 

@@ -38,7 +38,6 @@ import argparse
 import gc
 import json
 import os
-import platform
 import sys
 import tempfile
 import time
@@ -505,19 +504,12 @@ def read_before(path: Path) -> tuple[str, list]:
 
 def run(args: argparse.Namespace, argv: list[str]) -> int:
     """``python -m benchmarks instructions``: count, write instructions.json then .md to ``args.out``."""
-    from tactile_force.edge.files.atomic import staged_file
-
-    from .harness.client_requests import SUPPORTED
     from .harness.machine import command_line, describe_machine
     from .harness.paths import source_commit
 
-    if callgrind.valgrind() is None:
-        print("instructions: valgrind is not installed on this host; instruction counts need valgrind's callgrind "
-              "(e.g. apt-get install valgrind). Nothing counted.", file=sys.stderr)
-        return 0
-    if not SUPPORTED:
-        print(f"instructions: this benchmark counts each stage with callgrind's client requests, made here on "
-              f"x86-64 only, not {platform.machine()}. Nothing counted.", file=sys.stderr)
+    why = callgrind.unavailable("instructions")
+    if why:
+        print(why, file=sys.stderr)
         return 0
     readings = args.readings if args.readings else (20 if args.quick else READINGS)
     before_commit, before = "", []
@@ -529,11 +521,7 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
     vg = callgrind.version()
     rec = Record(command_line(argv), source_commit(), m.cpu, m.line(), readings, FRAMES, WARMUP, vg, variants,
                  time.monotonic() - t0, before_commit, before)
-    args.out.mkdir(parents=True, exist_ok=True)
-    for name, text in (("instructions.json", json.dumps(asdict(rec), indent=1) + "\n"),
-                       ("instructions.md", page(rec))):
-        with staged_file(args.out / name) as tmp:
-            tmp.write_text(text)
+    callgrind.write_counted(args.out, "instructions", json.dumps(asdict(rec), indent=1) + "\n", page(rec))
     print(f"wrote {args.out / 'instructions.md'}")
     return 0
 

@@ -170,3 +170,31 @@ def run_segments(cmd: Sequence[str], out_file: Path, env: Mapping[str, str] | No
     if not out:
         raise RuntimeError(f"{' '.join(cmd)} counted no segment under callgrind (no dump in {out_file.parent})")
     return out
+
+
+def unavailable(what: str) -> str:
+    """Why ``what`` (a page counted under callgrind with client requests) cannot be counted on this host,
+    one line; '' when it can."""
+    from .client_requests import SUPPORTED
+
+    if valgrind() is None:
+        return (f"{what}: valgrind is not installed on this host; the counts need valgrind's callgrind (e.g. apt-get "
+                "install valgrind). Nothing counted.")
+    if not SUPPORTED:
+        import platform
+
+        return (f"{what}: callgrind's client requests, which count each stage apart, are made here on x86-64 only, "
+                f"not {platform.machine()}. Nothing counted.")
+    return ""
+
+
+def write_counted(out: Path, stem: str, record_json: str, page_md: str) -> Path:
+    """``stem``.json then ``stem``.md into the folder ``out`` (made if missing), each written whole
+    (staged, then renamed into place); returns the page's path."""
+    from tactile_force.edge.files.atomic import staged_file
+
+    out.mkdir(parents=True, exist_ok=True)
+    for name, text in ((f"{stem}.json", record_json), (f"{stem}.md", page_md)):
+        with staged_file(out / name) as tmp:
+            tmp.write_text(text)
+    return out / f"{stem}.md"
