@@ -70,6 +70,7 @@ class MissingExtraError(TactileForceError, ImportError):
             f"Install it with: pip install 'tactile-force[{extra}]'"
         )
         self.module = module
+        self.name = module  # ImportError's own field: the module that is not there
         self.extra = extra
 
 
