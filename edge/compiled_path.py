@@ -126,18 +126,12 @@ def request(kind: str) -> None:
         if kind in _loaded or (kind in _missing and mode is KernelMode.AUTO):
             return
         if mode is KernelMode.AUTO and not _indexed(kind):  # never compiled here: not even numba is imported
-            _missing[kind] = "not compiled for this environment"
-            _log.warning("the %s's compiled kernels (numba) are installed but not compiled for this environment; "
-                         "this process takes the equal OpenCV / numpy path. Compile them once with: "
-                         "tactile-force kernels", _NAMES[kind])
+            _not_compiled(kind)
             return
         try:
             _load_one(kind, compile_missing=mode is KernelMode.COMPILE)
         except _NotCompiled:
-            _missing[kind] = "not compiled for this environment"
-            _log.warning("the %s's compiled kernels (numba) are installed but not compiled for this environment; "
-                         "this process takes the equal OpenCV / numpy path. Compile them once with: "
-                         "tactile-force kernels", _NAMES[kind])
+            _not_compiled(kind)
         except Exception as exc:  # a broken numba install: the readings never depend on it
             _missing[kind] = f"{exc.__class__.__name__}: {exc}"
             _log.warning("the %s's compiled kernels could not load (%s); this process takes the equal "
@@ -145,6 +139,14 @@ def request(kind: str) -> None:
 
 
 _NAMES = {"gate": "contact gate", "depth": "depth stage"}
+
+
+def _not_compiled(kind: str) -> None:
+    """``kind``'s kernels are not in numba's cache: the OpenCV / numpy path serves; one line says how to compile."""
+    _missing[kind] = "not compiled for this environment"
+    _log.warning("the %s's compiled kernels (numba) are installed but not compiled for this environment; this "
+                 "process takes the equal OpenCV / numpy path. Compile them once with: tactile-force kernels",
+                 _NAMES[kind])
 
 
 class _NotCompiled(Exception):
@@ -184,26 +186,27 @@ def _load_one(kind: str, compile_missing: bool) -> None:
     module = importlib.import_module(KIND_MODULES[kind])
     from numba.core import event
 
-    compiled: list[float] = []
-
     class Watch(event.Listener):  # numba's listener: told when a compile begins and ends
+        compiled = False
+
         def on_start(self, ev: object) -> None:
             if not compile_missing:
                 raise _NotCompiled(kind)
-            if not compiled:
+            if not self.compiled:
                 _log.warning("compiling the %s's kernels (numba, once per environment: about 10 s on 2 cores) "
                              "into %s", _NAMES[kind], cache_dir())
-            compiled.append(time.perf_counter())
+            self.compiled = True
 
         def on_end(self, ev: object) -> None:
             pass
 
     t0 = time.perf_counter()
-    with event.install_listener("numba:compile", Watch()):
+    watch = Watch()
+    with event.install_listener("numba:compile", watch):
         module.warm()
     _loaded[kind] = module
     _missing.pop(kind, None)
-    if compiled:
+    if watch.compiled:
         _log.warning("the %s's kernels compiled in %.1f s; later runs load them from the cache",
                      _NAMES[kind], time.perf_counter() - t0)
 

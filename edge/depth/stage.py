@@ -126,12 +126,12 @@ class DepthStage:
         #: downscale k > 1 (the compact depth bundles), float32 DST-I products; else the numpy path
         self._uses_kernels = (self.lut is not None and options.mode == "exact" and k > 1 and dtype is np.float32
                               and self.solver.backend == "matmul")
-        if self._uses_kernels:
-            compiled_path.request("depth")  # from numba's cache; never compiled here
         #: the compiled kernels where this process has them, else None: the numpy path
-        self._kernels: ModuleType | None = compiled_path.depth_kernels() if self._uses_kernels else None
+        self._kernels: ModuleType | None = None
         if self._uses_kernels:
             assert self.lut is not None  # _uses_kernels says so
+            compiled_path.request("depth")  # from numba's cache; never compiled here
+            self._kernels = compiled_path.depth_kernels()
             self._bg_rows = np.ascontiguousarray(self._bg_box.reshape(h, w * 3))
             self._glut_flat = np.ascontiguousarray(self._glut.ravel())  # gx, gy interleaved per cell
             self._scratch = np.zeros(4 + 3 * w, np.int64)  # the mask's box, its columns, a row's bins
@@ -268,7 +268,7 @@ class DepthStage:
             if (self._kernels is not None and type(mask) is np.ndarray and mask.dtype == np.uint8
                     and mask.shape == self._grid_hw and mask.flags.c_contiguous
                     and frame.shape == self.grid_frame_shape and frame.flags.c_contiguous):
-                return self._process_kernels(self._kernels, frame, mask)  # the gate's reduced image and mask
+                return self._process_kernels(frame, mask)  # the gate's reduced image and mask
             m, why = self._mask(mask)
             if m is None:
                 return self._fail(f"invalid input: {why}")
@@ -286,12 +286,13 @@ class DepthStage:
         except Exception as exc:  # last line of defence: the runtime loop must survive
             return self._fail(f"depth stage error: {exc.__class__.__name__}: {exc}")
 
-    def _process_kernels(self, kernels: ModuleType, frame: np.ndarray, mask: np.ndarray) -> DepthResult:
+    def _process_kernels(self, frame: np.ndarray, mask: np.ndarray) -> DepthResult:
         """Exact mode with the LUT on the depth grid in two compiled passes around the DST-I
         products: the same values as the numpy path (mask counts and saturation,
         :meth:`_lut_gradients_in_box`, :meth:`_integrate`), bit for bit. ``frame``: C-contiguous
         grid image, ``mask``: C-contiguous grid uint8 mask."""
-        assert self.lut is not None
+        assert self.lut is not None and self._kernels is not None
+        kernels = self._kernels
         h, w = self._grid_hw
         rows = frame.reshape(h, w * 3)
         contact_px, sat = kernels.gradients_divergence(rows, mask, self._bg_rows, self._glut_flat, self._work,

@@ -110,10 +110,10 @@ class OnnxForceModel:
         #: the int8 graph runs unfused on this host (its fused kernels would saturate: :mod:`.int8_host`)
         self.unfused = unfused_here(self.bundle)
         if self.unfused:
-            _log.info("%s: this CPU adds int8 products in 16 bits (x86-64 without VNNI) and the graph's weights "
-                         "use 8 bits: onnxruntime's fused int8 kernels could saturate, so the graph runs unfused, as "
-                         "written (the same forces as on any host; slower). A bundle quantized with 7-bit weights "
-                         "(tactile-force quantize) keeps the fused kernels", self.bundle.path)
+            _log.info("%s: this CPU adds int8 products in 16 bits (x86-64 without VNNI) and the graph's weights use "
+                      "8 bits: onnxruntime's fused int8 kernels could saturate, so the graph runs unfused, as written "
+                      "(the same forces as on any host; slower). A bundle quantized with 7-bit weights (tactile-force "
+                      "quantize) keeps the fused kernels", self.bundle.path)
         try:
             self.session = ort.InferenceSession(str(self.bundle.onnx_path),
                                                 session_options(self.threads, exact_qdq=self.unfused),

@@ -184,10 +184,10 @@ class ZenohPublisher:
         expect(node, str, "ZenohPublisher.node", nonempty=True)
         expect(endpoint, str | None, "ZenohPublisher.endpoint")
         expect(mode, str, "ZenohPublisher.mode")
-        if mode not in ("client", "peer"):
+        if mode not in MODES:
             from ..errors import OptionsError
 
-            raise OptionsError(f"ZenohPublisher.mode={mode!r}: expected 'client' or 'peer'")
+            raise OptionsError(f"ZenohPublisher.mode={mode!r}: expected one of {', '.join(MODES)}")
         expect(domain_id, int | None, "ZenohPublisher.domain_id", ge=0, le=232)
         expect(qos, str, "ZenohPublisher.qos")
         for flag, value in (("diagnostics", diagnostics), ("interval", interval), ("retry", retry)):

@@ -160,7 +160,7 @@ class ReplayFolderSource(_FileSequenceSource):
         n = 0
         for i in self._dataset.ids:
             try:
-                read_force_file(self._dataset.force_path(i))
+                self._dataset.force(i)
             except LabelError:
                 continue
             n += 1
