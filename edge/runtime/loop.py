@@ -482,7 +482,7 @@ class ForceRuntime:
         inf_ms = (self.clock() - t0) / 1e6
         self.stats.inferred += n
         judge = self._judge
-        keep = self._warm.prewarm is not None  # the last input, for the next warm-up
+        keep = self._warm.watching  # the last input, for the next warm-up (while one may run)
         for p, raw in zip(pending, forces):
             g = p.gate
             assert g is not None  # a frame in contact

@@ -261,6 +261,9 @@ class WarmUps:
         self.prewarm = Prewarm(clock) if mode is not False and not blocked else None
         self._lone = use is None and len(sensors) == 1  # a grabber thread only while warm-ups run
         stats.prewarm = self.decision.state
+        #: whether each frame's arrival and the last input are kept for a warm-up (not while a
+        #: decision to leave warm-ups off holds: then a reading runs the path of prewarm=False)
+        self.watching = self.prewarm is not None and self.decision.watching
         self._model_prewarm: Callable[[int], None] | None = getattr(model, "prewarm", None)
 
     def read(self, live: list[Sensor]) -> list[tuple[Sensor, Read]]:
@@ -274,6 +277,7 @@ class WarmUps:
                 wait_ns = warm.wait_ns(s.name for s in live)
             elif self._lone and self.grabbers is not None:  # back to the loop's thread
                 self._retire_grabber(self.grabbers)
+            self.watching = self.decision.watching
             self.stats.prewarm = self.decision.state
         if self.use_grabbers or wait_ns >= 0:  # a rest is taken on the grabbers: a frame ends it
             grabbers = self.start()
@@ -286,9 +290,10 @@ class WarmUps:
         return reads
 
     def seen(self, name: str, arrival_ns: int) -> None:
-        """A frame of sensor ``name`` arrived at ``arrival_ns`` (ns; warm-ups on only)."""
+        """A frame of sensor ``name`` arrived at ``arrival_ns`` (ns; kept only while warm-ups
+        may run: :attr:`watching`)."""
         warm = self.prewarm
-        if warm is not None:
+        if warm is not None and self.watching:
             warm.seen(name, arrival_ns)
             self.stats.prewarm_overran = warm.overran
 
@@ -349,7 +354,7 @@ class WarmUps:
                     return len(live) / parts
                 self._model_prewarm(n)
         except Exception as exc:  # noqa: BLE001 - the frame that follows must still be served
-            self.prewarm = None
+            self.prewarm, self.watching = None, False
             self.decision = PrewarmDecision(False, self.clock)
             self.stats.prewarm = self.decision.state = f"off (a warm-up failed: {type(exc).__name__}: {exc})"
             _log.warning("ForceRuntime(%s): a warm-up before a frame failed (%s: %s); warm-ups are off for this "

@@ -183,6 +183,13 @@ class PrewarmDecision:
         #: trials finished
         self.trials = 0
 
+    @property
+    def watching(self) -> bool:
+        """Whether the runtime keeps what a warm-up needs (each sensor's cadence and last
+        input): while warm-ups run, and while they may run soon (settling, a trial under way);
+        not while a decision to leave them off holds (until the next trial) or they are never on."""
+        return self._on or (self.auto and (self._i >= 0 or self.trials == 0))
+
     def active(self) -> bool:
         """Whether warm-ups run in the step that starts now (advances the trial's windows)."""
         if not self.auto:

@@ -547,3 +547,43 @@ def test_one_sensor_goes_back_to_the_loops_thread_when_warm_ups_stop(frames, mod
     first = threads.index(True)
     assert False in threads[first:]  # retired after warm-ups stopped
     assert True in threads[first + threads[first:].index(False):]  # and back for the next warm-ups
+
+
+def test_once_auto_leaves_warm_ups_off_a_reading_runs_the_path_of_prewarm_false(frames, model):
+    """After the 'auto' trial decides against warm-ups (a decision on a fake clock: too few
+    readings to judge), until the next trial the runtime keeps nothing for a warm-up: no
+    cadence is tracked, no last input held, no grabber thread runs; the readings are those
+    made with warm-ups off. During settling and the trial it keeps them."""
+    from tactile_force.edge.runtime.prewarm_decision import RETRY_NS, WINDOW_NS, PrewarmDecision
+
+    free, seq = frames
+    seq = (seq * 4)[:60]
+    want, _ = _run(seq, free, model, 1, prewarm=False, paced=False)
+    rt = _runtime(free, model, [PacedList(seq, 50)], "auto")
+    fake = FakeClock(0)
+    rt._warm.decision = PrewarmDecision("auto", fake, cpu=lambda: 0)
+    seen = []
+    real_seen = rt._warm.prewarm.seen
+    rt._warm.prewarm.seen = lambda name, ns: (seen.append(ns), real_seen(name, ns))  # type: ignore[method-assign]
+    got, phases = [], []
+    try:
+        while not rt.finished:
+            n_seen = len(seen)
+            out = rt.step()
+            got += [(r.sensor, r.frame_index, r.force_n, int(r.flags), r.contact_area_px, r.detail) for r in out]
+            lane = rt._lanes["s0"]
+            phases.append((rt.stats.prewarm, rt._warm.watching, len(seen) - n_seen, lane.last is not None,
+                           rt._warm.grabbers is not None))
+            if not rt.stats.prewarm.startswith("off"):
+                fake.t += WINDOW_NS // 2
+    finally:
+        rt.close()
+    np.testing.assert_equal(sorted(got, key=lambda r: (r[0], r[1])), want)
+    trying = [p for p in phases if p[0] == "trying"]
+    off = [p for p in phases if p[0].startswith("off")]
+    assert trying and off, phases
+    assert all(p[1] for p in trying) and sum(p[2] for p in trying) > 0  # the trial tracks the cadence
+    assert off[0][0].startswith("off (too few readings")
+    assert all(not p[1] and p[2] == 0 and not p[3] for p in off), off  # nothing kept for a warm-up
+    assert not off[-1][4]  # the grabber thread retired
+    assert rt._warm.decision._next > fake.t + RETRY_NS // 2  # held until the next trial
