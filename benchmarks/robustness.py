@@ -342,7 +342,9 @@ def page(tallies: list[Tally], command: str, examples: int, kept: str = "") -> s
     bad = failures(tallies)
     lines = [header("Robustness: bad inputs and faults", command, describe_machine(),
                     "Every case goes through the public API or the CLI, as a user would; the rules each "
-                    "category is judged by are below the table."),
+                    "category is judged by are below the table. The hand-picked cases (command lines, "
+                    "manifest, bundle and scene edits, the values generated cases draw from) are the rows of "
+                    "benchmarks/robustness_cases.toml."),
              f"{examples} generated cases per generated category.", "", table(tallies), "",
              f"Disk full was made with: {disk}.", ""]
     if bad:

@@ -20,8 +20,10 @@ import os
 import shutil
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any
 
 from .harness.cases import Outcome, Verdict, accepted, cli_verdict, default_bundle_dir, refusal, worst
+from .robustness_table import rows
 
 Case = tuple[str, Callable[[], Verdict]]
 
@@ -42,27 +44,29 @@ def _linked(dest: Path, name: str) -> Path:
     return dest
 
 
-def _swap(m: dict) -> None:
-    d = m["data_stats"]
-    d["cell_lo"], d["cell_hi"] = d["cell_hi"], d["cell_lo"]
+def _maker(row: dict[str, Any]) -> Callable[[Path], Path]:
+    """How one ``[[bundle_lie]]`` row's bundle is made under a folder: model.json keys set (a
+    dotted key reaches into a record), two keys of a record swapped, or a file linked from outside."""
+    if "link" in row:
+        return lambda d: _linked(d, row["link"])
+
+    def edit(m: dict) -> None:
+        for dotted, value in row.get("set", {}).items():
+            *parents, key = dotted.split(".")
+            t = m
+            for p in parents:
+                t = t[p]
+            t[key] = value
+        if "swap" in row:
+            record, a, b = row["swap"]
+            m[record][a], m[record][b] = m[record][b], m[record][a]
+    return lambda d: _edited(d, edit)
 
 
-#: (what, how the bundle is made under a folder, the words a refusal must hold)
+#: (what, how the bundle is made under a folder, the words a refusal must hold): the rows of
+#: robustness_cases.toml ``[[bundle_lie]]``
 BUNDLES: list[tuple[str, Callable[[Path], Path], tuple[str, ...]]] = [
-    ("precision int8-dynamic on an int8-static graph",
-     lambda d: _edited(d, lambda m: m.update(precision="int8-dynamic")), ("precision", "int8-static")),
-    ("architecture.input_scale 0.5 on an 80 x 60 graph",
-     lambda d: _edited(d, lambda m: m["architecture"].update(input_scale=0.5)), ("architecture.input_scale",)),
-    ("model.onnx a link to a copy outside the bundle", lambda d: _linked(d, "model.onnx"),
-     ("model.onnx", "outside the bundle")),
-    ("model.json a link to a copy outside the bundle", lambda d: _linked(d, "model.json"),
-     ("model.json", "outside the bundle")),
-    ("data_stats colour ranges swapped", lambda d: _edited(d, _swap), ("data_stats", "cell_lo")),
-    ("name with path separators", lambda d: _edited(d, lambda m: m.update(name="../../etc")), ("name",)),
-    ("name with a newline", lambda d: _edited(d, lambda m: m.update(name="a\nb")), ("name",)),
-    ("depth record on an RGBmod bundle",
-     lambda d: _edited(d, lambda m: m.update(depth={"mapping": "package:virtual_digit_depth.npz"})), ("depth",)),
-]
+    (row["what"], _maker(row), tuple(row["names"])) for row in rows("bundle_lie")]
 
 
 def _probe_bundle(path: Path, names: tuple[str, ...]) -> Verdict:

@@ -11,6 +11,7 @@ tests/edge/test_moved.py, tests/benchmarks/test_bench_statistics.py.
 
 from __future__ import annotations
 
+import functools
 import math
 import signal
 import subprocess
@@ -21,12 +22,13 @@ from collections.abc import Callable
 from pathlib import Path
 
 from .harness.cases import Outcome, Verdict, run_cli
+from .robustness_table import fill, rows, values
 
 Cases = tuple[list[tuple[str, Callable[[], Verdict]]], str]
 
 # =============================================================================== signals at start
 #: seconds after the package starts loading at which the early signals are sent
-EARLY_DELAYS = (0.0, 0.05, 0.1, 0.2, 0.3)
+EARLY_DELAYS = tuple(values("early_delays_s"))
 
 
 def cli_argv(*args: str) -> list[str]:
@@ -103,8 +105,7 @@ CATEGORIES: list[tuple[str, str, Callable[[Path, int], Cases]]] = [
 
 # =============================================================================== numeric arguments
 #: texts every numeric flag must refuse (or accept only inside its declared range)
-EXTREME_TEXTS = ("1e-300", "-1e-300", "1e300", "-1e300", "nan", "inf", "-inf", "-1", "0", str(10**30), str(-(10**30)),
-                 "1e3000", "0x10", "")
+EXTREME_TEXTS = tuple(values("extreme_texts"))
 
 
 def numeric_flags() -> list[tuple[str, str, object]]:
@@ -204,42 +205,29 @@ def _api_case(call: Callable[[], object], names: tuple[str, ...]) -> Verdict:
 
 
 def api_numeric_cases() -> list[tuple[str, Callable[[], object], tuple[str, ...]]]:
-    """Public constructors and options records at their numeric extremes: (what, call, names the error must hold)."""
+    """Public constructors and options records at their numeric extremes (robustness_cases.toml
+    ``[[numeric_api]]``): (what, call, names the error must hold)."""
     import numpy as np
-    from tactile_force.edge import RuntimeOptions, VirtualDigitSource
-    from tactile_force.edge.sources import CameraSource, ReplayFolderSource
+    import tactile_force.edge as edge
 
-    return [
-        ("ReplayFolderSource(fps=1e-300)", lambda: ReplayFolderSource(".", fps=1e-300), ("ReplayFolderSource.fps",)),
-        ("ReplayFolderSource(fps=1e300)", lambda: ReplayFolderSource(".", fps=1e300), ("ReplayFolderSource.fps",)),
-        ("CameraSource(fps=1e-300)", lambda: CameraSource(0, fps=1e-300), ("CameraSource.fps",)),
-        ("RuntimeOptions(latency_window=10**12)", lambda: RuntimeOptions(latency_window=10**12),
-         ("RuntimeOptions.latency_window",)),
-        ("RuntimeOptions(threads=10**9)", lambda: RuntimeOptions(threads=10**9), ("RuntimeOptions.threads",)),
-        ("RuntimeOptions(deadline_ms=1e300)", lambda: RuntimeOptions(deadline_ms=1e300),
-         ("RuntimeOptions.deadline_ms",)),
-        ("VirtualDigitSource(peak_n=(14, 3))", lambda: VirtualDigitSource(peak_n=(14.0, 3.0)),
-         ("VirtualDigitSource.peak_n",)),
-        ("VirtualDigitSource(fps=1e-300)", lambda: VirtualDigitSource(fps=1e-300), ("VirtualDigitSource.fps",)),
-        ("VirtualDigitSource(n_grasps=10**9)", lambda: VirtualDigitSource(n_grasps=10**9),
-         ("VirtualDigitSource.n_grasps",)),
-        ("VirtualDigitSource(lead_in_s=1e300)", lambda: VirtualDigitSource(lead_in_s=1e300),
-         ("VirtualDigitSource.lead_in_s",)),
-        ("VirtualDigitSource(seed=np.int64(-1))", lambda: VirtualDigitSource(seed=np.int64(-1)),
-         ("VirtualDigitSource.seed",)),
-    ]
+    out: list[tuple[str, Callable[[], object], tuple[str, ...]]] = []
+    for row in rows("numeric_api"):
+        kwargs = dict(row["kwargs"])
+        for key in row.get("as_tuple", []):
+            kwargs[key] = tuple(kwargs[key])
+        for key in row.get("as_numpy_int", []):
+            kwargs[key] = np.int64(kwargs[key])
+        cls, args = getattr(edge, row["call"]), row.get("args", [])
+        shown = ", ".join([*map(repr, args), *(f"{k}={v!r}" for k, v in kwargs.items())])
+        out.append((f"{row['call']}({shown})", functools.partial(cls, *args, **kwargs),
+                    tuple(f"{row['call']}.{k}" for k in kwargs)))
+    return out
 
 
 def cli_numeric_cases(folder: Path) -> list[tuple[list[str], str]]:
-    """The reported CLI cases, run whole: (argv, the flag the message must name); exit 2."""
-    return [
-        (["run", "--source", "virtual", "--fps", "1e-300", "--out", str(folder / "r.csv")], "--fps"),
-        (["bench", "--fps", "1e-300", "--out", str(folder / "bench")], "--fps"),
-        (["bench", "--cadence-frames", "1e300", "--out", str(folder / "bench")], "--cadence-frames"),
-        (["demo", "--seed", "-1", "--out", str(folder / "demo")], "--seed"),
-        (["synth", "--out", str(folder / "s"), "--n", "1e300"], "--n"),
-        (["record", "--every", "-5"], "--every"),
-    ]
+    """The reported CLI cases, run whole (robustness_cases.toml ``[[numeric_run]]``): (argv, the
+    flag the message must name); exit 2."""
+    return [(fill(row["argv"], {"folder": folder}), row["flag"]) for row in rows("numeric_run")]
 
 
 def cli_numeric_verdict(argv: list[str], flag: str, folder: Path) -> Verdict:

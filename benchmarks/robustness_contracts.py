@@ -27,10 +27,10 @@ from .harness.cases import (
     worst,
     write_frame_png,
 )
+from .robustness_table import fill, rows, section, values
 
 # =============================================================================== frames
-_SHAPES = [(320, 240, 3), (240, 320, 3), (320, 240), (320, 240, 4), (1, 320, 240, 3), (0, 240, 3), (320, 240, 1),
-           (320, 241, 3), (3,), ()]
+_SHAPES = [tuple(shape) for shape in values("frame_shapes")]
 _DTYPES = [np.uint8, np.float32, np.float64, np.int16, np.uint16, np.bool_]
 
 
@@ -157,21 +157,22 @@ def manifest_mutations(draw) -> tuple[str, Any]:
     return f"{tag}{'.'.join(map(str, path))} = {json.dumps(new)[:60]}", m
 
 
-#: hand-picked manifests that crashed at commit 9ed225d (a matching hash and a graph that does not fit)
+def _set_at(tree: Any, path: list[Any], value: Any) -> None:
+    for k in path[:-1]:
+        tree = tree[k]
+    tree[path[-1]] = value
+
+
 def targeted_manifests() -> list[tuple[str, Any]]:
+    """The hand-picked manifests (robustness_cases.toml ``[[manifest_lie]]``, each must be
+    refused; ``[manifest_partial]`` records cut to their first key)."""
     out: list[tuple[str, Any]] = []
-    for path, value in ((("variant",), "d"), (("variant",), "rgbmod+d"), (("onnx_file",), "../../x/model.onnx"),
-                        (("onnx_file",), "/etc/hostname"), (("onnx_file",), str(default_bundle_dir() / "model.onnx")),
-                        (("inputs", 0, "shape"), [1, 320, 240, 3]), (("inputs", 0, "dtype"), "float32"),
-                        (("inputs", 0, "name"), "depth"), (("output", "name"), "force"),
-                        (("sha256",), "0" * 64), (("format_version",), 99)):
+    for row in rows("manifest_lie"):
         m = base_manifest()
-        parent = m
-        for k in path[:-1]:
-            parent = parent[k]
-        parent[path[-1]] = value
-        out.append((f"MUST-REFUSE {'.'.join(map(str, path))} = {json.dumps(value)}", m))
-    for key in ("parity", "error", "architecture", "quantization", "provenance"):
+        value = fill(row["value"], {"bundle": default_bundle_dir()})
+        _set_at(m, row["path"], value)
+        out.append((f"MUST-REFUSE {'.'.join(map(str, row['path']))} = {json.dumps(value)}", m))
+    for key in section("manifest_partial")["keys"]:
         m = base_manifest()
         if isinstance(m.get(key), dict) and m[key]:
             first = next(iter(m[key]))
@@ -270,27 +271,23 @@ def probe_scene(folder: Path, case: tuple[str, Callable[[dict], dict]]) -> Verdi
 
 
 def targeted_scenes() -> list[tuple[str, Callable[[dict], dict], bool]]:
-    """The scenes that crashed at commit 9ed225d: (what, mutation, must_refuse)."""
+    """The hand-picked scenes (robustness_cases.toml ``[[scene_edit]]``): (what, mutation, must_refuse)."""
 
-    def setter(section: str, key: str, value: Any) -> Callable[[dict], dict]:
+    def edit(row: dict[str, Any]) -> Callable[[dict], dict]:
         def f(scene: dict) -> dict:
             s = json.loads(json.dumps(scene))
-            if section == "top":
-                s[key] = value
+            if "section" not in row:
+                return s
+            if row["section"] == "top":
+                s[row["key"]] = row["value"]
             else:
-                t = s[section][0] if isinstance(s[section], list) else s.setdefault(section, {})
-                t[key] = value
+                sec = s[row["section"]]
+                t = sec[0] if isinstance(sec, list) else s.setdefault(row["section"], {})
+                t[row["key"]] = row["value"]
             return s
         return f
 
-    return [("gate.threshold = 'high'", setter("gate", "threshold", "high"), True),
-            ("gate.background_frames = '5'", setter("gate", "background_frames", "5"), True),
-            ("runtime = 5", setter("top", "runtime", 5), True),
-            ("sensor = [1, 2]", setter("top", "sensor", [1, 2]), True),
-            ("sensor.fps = inf", setter("sensor", "fps", math.inf), True),
-            ("sensor.fps = nan", setter("sensor", "fps", math.nan), True),
-            ("output csv path is a directory", setter("output", "path", "/tmp"), False),
-            ("base scene", lambda s: s, False)]
+    return [(row["what"], edit(row), bool(row["refuse"])) for row in rows("scene_edit")]
 
 
 # =============================================================================== checkpoint metadata
@@ -377,25 +374,12 @@ def probe_checkpoint_meta(folder: Path, meta: Any) -> Verdict:
 
 # =============================================================================== CLI arguments
 def cli_cases(folder: Path) -> list[tuple[list[str], set[int], tuple[str, ...]]]:
-    """(argv, allowed exit codes, words the message must contain) of bad arguments: all exit 2."""
+    """(argv, allowed exit codes, words the message must contain) of bad arguments
+    (robustness_cases.toml ``[[cli_argument]]``): all exit 2."""
     afile = folder / "a_file.txt"
     afile.write_text("x")
-    bundle = str(default_bundle_dir())
-    return [
-        (["synth", "--n", "0", "--out", str(folder / "s1")], {2}, ("--n",)),
-        (["synth", "--out", str(afile), "--n", "5"], {2}, ("--out",)),
-        (["synth", "--out", str(folder / "s2"), "--n", "2", "--edge-fraction", "2"], {2}, ("--edge-fraction",)),
-        (["synth", "--out", str(folder / "s3"), "--n", "2", "--frames-per-grasp", "0"], {2}, ("--frames-per-grasp",)),
-        (["quantize", bundle, "--out", str(folder / "q"), "--max-frames", "0"], {2}, ("--max-frames",)),
-        (["quantize", bundle, "--out", str(folder / "q"), "--min-frames", "0"], {2}, ("--min-frames",)),
-        (["quantize", bundle, "--out", str(folder / "q"), "--min-frames", "50", "--max-frames", "10"], {2},
-         ("--min-frames",)),
-        (["export", str(afile), "--out", str(folder / "e"), "--opset", "99"], {2}, ("--opset",)),
-        (["export", str(afile), "--out", str(folder / "e"), "--opset", "12"], {2}, ("--opset",)),
-        (["record"], {2}, ("--sensor",)),
-        (["record", "--repair", str(folder / "nope")], {2}, ("nope",)),
-        (["record", "--sensor", "0", "--out", str(folder / "r"), "--every", "0"], {2}, ("--every",)),
-    ]
+    places = {"folder": folder, "afile": afile, "bundle": default_bundle_dir()}
+    return [(fill(row["argv"], places), {2}, tuple(fill(row["names"], places))) for row in rows("cli_argument")]
 
 
 def calib_channel_cases(folder: Path) -> list[tuple[str, str, Path]]:

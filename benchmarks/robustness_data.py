@@ -19,17 +19,14 @@ from .harness.cases import (
     refusal,
     worst,
 )
+from .robustness_table import label_tokens
 
 MAX_FORCE_N = 200.0
 
 
 # =============================================================================== labels
-_LABEL_TOKENS = [b"", b"\n", b"   \n", b"nan", b"NaN\n", b"inf", b"-inf", b"-5", b"-5.0\n", b"1e308", b"-0.0",
-                 b"0", b"0.0\n", b"200", b"200.0001", b"1_000", b"0x10", b"\xef\xbb\xbf3.5\n", b"\xff\xfe3\n",
-                 b"3.5,2.0\n", b"abc\n", b"\x00\x00", b"1.0813515186309814\n0.0173\n0.0175\n", b"  \n 4.2 \n",
-                 b"1e-3", b".5", b"5.", b"+4", b"4 N", b"\xe9\n", b"12\x00\n", b"1e400", b"infinity",
-                 b"1,08\n", b"0,95\n", b"1.08 N\n", b"1.08N\n", b"108 g\n", b"3.5; 2.0\n", b"3.5 2.0\n",
-                 b"12,5 N\n", b"1.5 # scale\n"]
+#: label file contents every reader is tried on (robustness_cases.toml [values] label_tokens)
+_LABEL_TOKENS = label_tokens()
 
 
 def label_bytes() -> st.SearchStrategy[bytes]:

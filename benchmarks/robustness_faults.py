@@ -26,13 +26,14 @@ from .harness.cases import (
     worst,
 )
 from .harness.paths import require_repo
+from .robustness_table import values
 
 REPO = require_repo("the robustness suite (its workers are in tests/robustness)")
 KILL_WORKER = REPO / "tests" / "robustness" / "record_kill_worker.py"
 
 
 # =============================================================================== record faults
-KILL_PHASES = ("image_tmp", "image_done", "meta_partial", "meta_done", "force_tmp", "force_done")
+KILL_PHASES = tuple(values("kill_phases"))
 KILL_AFTER = 3  # complete samples before the kill
 
 

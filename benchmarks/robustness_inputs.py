@@ -10,6 +10,7 @@ hangs, in a subprocess / a watched thread) and is classified like every other ca
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import io
 import logging
@@ -17,7 +18,7 @@ import os
 import shutil
 import subprocess
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 
 import numpy as np
@@ -35,6 +36,7 @@ from .harness.cases import (
     write_frame_png,
 )
 from .harness.paths import require_repo, shared_data
+from .robustness_table import fill, rows
 
 REPO = require_repo("the robustness suite (its workers are in tests/robustness)")
 TF_CLI = REPO / "tests" / "robustness" / "tf_cli.py"
@@ -161,20 +163,12 @@ def inputs_cases(folder: Path) -> list[tuple[str, Callable[[], Verdict]]]:
         ("export --out <folder holding the checkpoint> --force", export_into_run),
         ("quantize B --out B --force", lambda: quantize(False)),
         ("quantize B --out B/inside", lambda: quantize(True)),
-        ("run --out <existing CSV> without --force", lambda: guarded(
-            ["run", "--source", str(replay), "--out", str(old_csv)], [old_csv, replay], True, (str(old_csv),))),
-        ("run --out <existing JSONL> --force (valid)", lambda: guarded(
-            ["run", "--source", str(replay), "--out", str(old_jsonl), "--force"], [replay], False)),
-        ("run --out <inside the replay folder>", lambda: guarded(
-            ["run", "--source", str(replay), "--out", str(replay / "r.csv")], [replay], True, ("--out",))),
         ("compress --out <the frames folder>", compress_into_frames),
         ("write_bundle(overwrite=True) onto a folder of other files", lambda: _probe_write_bundle(folder)),
     ]
-    gs = SHARED / "gelsight_mini_ball_presses.npz"
-    if gs.is_file():
-        cases.append(("calibrate-depth -o <existing file> without --force", lambda: guarded(
-            ["calibrate-depth", str(gs), "--ball-radius-mm", "2.0", "--px-per-mm", "33.898", "-o", str(old_npz)],
-            [old_npz], True, (str(old_npz),))))
+    places = {"replay": replay, "old_csv": old_csv, "old_jsonl": old_jsonl, "old_npz": old_npz,
+              "gelsight": SHARED / "gelsight_mini_ball_presses.npz"}
+    cases += command_cases("never_destroyed", places)
     if fifo.exists():
         cases.append(("run --background <a FIFO>", lambda: _probe_fifo_run(replay, fifo)))
     return cases
@@ -325,29 +319,31 @@ def presses_cases(folder: Path) -> list[tuple[str, Callable[[], Verdict]]]:
 
 # ================================================================== calibrate-depth
 def depth_cases(folder: Path) -> list[tuple[str, Callable[[], Verdict]]]:
-    gs = SHARED / "gelsight_mini_ball_presses.npz"
-    fots = SHARED / "fots_digit" / "ball_presses"
-    bg = SHARED / "digit_backgrounds" / "fots_digit_bg.png"
-    if not (gs.is_file() and fots.is_dir() and bg.is_file()):
+    """Every wrong radius and scale (robustness_cases.toml ``[[depth_wrong]]``) on each sensor's
+    ball presses (``[[depth_set]]``), then the true ones; none when the shared data is absent."""
+    sets = rows("depth_set")
+    if not all((SHARED / p).exists() for d in sets for p in d["source"] if not p.startswith("--")):
         return []
-    sets = [("GelSight Mini", [str(gs)], 2.0, 33.898), ("DIGIT (FOTS)", [str(fots), "--background", str(bg)], 2.35,
-                                                         19.58)]
     cases: list[tuple[str, Callable[[], Verdict]]] = []
     k = iter(range(1000))
-    for name, src, radius, scale in sets:
-        bad = [("--ball-radius-mm", "0", str(scale)), ("--ball-radius-mm", "-3", str(scale)),
-               ("--ball-radius-mm", "nan", str(scale)), ("--px-per-mm", str(radius), "0"),
-               ("--px-per-mm", str(radius), "inf"), ("--px-per-mm", str(radius), str(scale * 10)),
-               ("--px-per-mm", str(radius), str(scale / 10))]
-        for flag, r, s in bad:
-            out = folder / f"depth_{next(k)}.npz"
-            cases.append((f"{name}: radius {r} mm, {s} px/mm", lambda src=src, r=r, s=s, flag=flag, out=out: guarded(
-                ["calibrate-depth", *src, "--ball-radius-mm", r, "--px-per-mm", s, "-o", str(out)], [], True,
-                (flag,))))
+
+    def calibrate(src: list[str], r: str, s: str, refuse: bool, names: tuple[str, ...] = ()) -> Callable[[], Verdict]:
         out = folder / f"depth_{next(k)}.npz"
-        cases.append((f"{name}: the true radius and scale (valid)", lambda src=src, radius=radius, scale=scale,
-                      out=out: guarded(["calibrate-depth", *src, "--ball-radius-mm", str(radius), "--px-per-mm",
-                                        str(scale), "-o", str(out)], [], False)))
+        return lambda: guarded(["calibrate-depth", *src, "--ball-radius-mm", r, "--px-per-mm", s, "-o", str(out)],
+                               [], refuse, names)
+
+    for d in sets:
+        src = [p if p.startswith("--") else str(SHARED / p) for p in d["source"]]
+        radius, scale = str(d["radius_mm"]), str(d["px_per_mm"])
+        for w in rows("depth_wrong"):
+            r = w.get("radius", radius)
+            s = w.get("scale", scale)
+            if "scale_times" in w:
+                s = str(d["px_per_mm"] * w["scale_times"])
+            elif "scale_over" in w:
+                s = str(d["px_per_mm"] / w["scale_over"])
+            cases.append((f"{d['name']}: radius {r} mm, {s} px/mm", calibrate(src, r, s, True, (w["flag"],))))
+        cases.append((f"{d['name']}: the true radius and scale (valid)", calibrate(src, radius, scale, False)))
     return cases
 
 
@@ -387,7 +383,6 @@ def smaller_cases(folder: Path) -> list[tuple[str, Callable[[], Verdict]]]:
                      '[[output]]\nkind = "ros2"\ntopic = "/a//b"\n')
     vga = folder / "bg_vga.png"
     cv2.imwrite(str(vga), np.full((480, 640, 3), 90, np.uint8))
-    out_csv = folder / "max0.csv"
 
     def d_bundle() -> Verdict:
         try:
@@ -406,28 +401,23 @@ def smaller_cases(folder: Path) -> list[tuple[str, Callable[[], Verdict]]]:
     pngs = folder / "nan_frames"
     for i in range(2):
         write_frame_png(pngs / f"{i}.png", i)
-    return [
-        ("run --max-frames 0", lambda: guarded(["run", "--source", str(replay), "--max-frames", "0", "--out",
-                                                str(out_csv)], [replay], True, ("--max-frames",))),
-        ("scene topic = '/a//b' at scene show", topic),
-        ("run --background <640x480 image>", lambda: guarded(
-            ["run", "--source", str(replay), "--background", str(vga), "--max-frames", "2"], [vga], True,
-            (str(vga), "320x240"))),
-        ("D bundle with --source and no depth mapping", d_bundle),
-        ("compress --budget-ms nan", lambda: guarded(
-            ["compress", "teacher.pth", "--frames", str(pngs), "--out", str(folder / "c_nan"), "--budget-ms", "nan"],
-            [pngs], True, ("--budget-ms",))),
-        ("export --tolerance nan", lambda: guarded(
-            ["export", "c.pth", "--out", str(folder / "e_nan"), "--tolerance", "nan"], [], True, ("--tolerance",))),
-        ("quantize --percentile inf", lambda: guarded(
-            ["quantize", str(default_bundle_dir()), "--out", str(folder / "q_inf"), "--percentile", "inf"], [], True,
-            ("--percentile",))),
-        ("calibrate-depth --holdout nan", lambda: guarded(
-            ["calibrate-depth", str(pngs), "--ball-radius-mm", "2", "--px-per-mm", "20", "-o",
-             str(folder / "h.npz"), "--holdout", "nan"], [pngs], True, ("--holdout",))),
-        ("run --fps nan", lambda: guarded(["run", "--source", str(replay), "--fps", "nan"], [replay], True,
-                                          ("--fps",))),
-    ]
+    places = {"folder": folder, "replay": replay, "vga": vga, "pngs": pngs, "bundle": default_bundle_dir()}
+    return [("scene topic = '/a//b' at scene show", topic), ("D bundle with --source and no depth mapping", d_bundle),
+            *command_cases("smaller", places)]
+
+
+def command_cases(table: str, places: Mapping[str, object]) -> list[tuple[str, Callable[[], Verdict]]]:
+    """(what, probe) of each ``[[table]]`` row of robustness_cases.toml: its command run through
+    the CLI with ``places`` filled in, refused naming its ``names`` (or, with ``refuse = false``,
+    accepted), its ``watched`` paths unchanged. A row that ``needs`` a path absent here is left out."""
+    out: list[tuple[str, Callable[[], Verdict]]] = []
+    for row in rows(table):
+        if "needs" in row and not Path(fill(row["needs"], places)).exists():
+            continue
+        argv, names = fill(row["argv"], places), tuple(fill(row.get("names", []), places))
+        watched = [Path(p) for p in fill(row.get("watched", []), places)]
+        out.append((row["what"], functools.partial(guarded, argv, watched, bool(row.get("refuse", True)), names)))
+    return out
 
 
 def run_cases(cases: list[tuple[str, Callable[[], Verdict]]], add: Callable[[Verdict], None]) -> None:
