@@ -11,6 +11,7 @@
     python -m benchmarks instructions --out docs/benchmarks  # instructions per reading (callgrind) -> instructions.md
     python -m benchmarks startup --out docs/benchmarks    # process start -> first reading, per install -> startup.md
     python -m benchmarks footprint --out docs/benchmarks  # cache lines of code and data one reading touches
+    python -m benchmarks default-bundle --bench-runs 5 --out docs/benchmarks  # which bundle ships as the default
 
 Results go to ``--out DIR`` (default out/benchmarks, git-ignored); docs/benchmarks only
 when it is named. Every page states the command, the commit of the code that measured, the
@@ -97,6 +98,18 @@ def _problem(args: argparse.Namespace) -> str:
             read_before(args.before)
         except ValueError as exc:
             return f"--before {args.before}: {exc}"
+    if args.reports is not None:
+        if args.what != "default-bundle":
+            return "--reports: only 'default-bundle' judges earlier bench reports"
+        for r in args.reports:
+            if not r.is_file():
+                return f"--reports {r}: not a file; expected a bench report.json (tactile-force bench --out DIR)"
+            try:
+                from .bench_contract import read_report
+
+                read_report(r)
+            except (ValueError, KeyError, TypeError) as exc:
+                return f"--reports {r}: not a bench report.json ({exc})"
     for py in args.python or ():
         if not (os.path.isfile(py) and os.access(py, os.X_OK)):
             return f"--python {py}: not an executable file; expected a Python interpreter (e.g. .venv/bin/python)"
@@ -124,17 +137,20 @@ def _main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m benchmarks", description=(__doc__ or "").split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__)
     ap.add_argument("what", nargs="?", choices=(*TASKS, "robustness", "trust", "intervals", "cadence", "error",
-                                               "instructions", "startup", "footprint"),
+                                               "instructions", "startup", "footprint", "default-bundle"),
                     help="which page to make; 'robustness', 'trust', 'intervals', 'cadence', 'error' and "
                          "'instructions' are not part of 'all'")
     ap.add_argument("--rounds", type=within(int, COUNT), default=3,
                     help="cadence: rounds of interleaved phases (default 3; --quick: 1)")
     ap.add_argument("--bench-runs", type=within(int, COUNT), default=10,
-                    help="cadence: runs of the bench verdict on the default bundle (default 10; --quick: 2)")
+                    help="cadence: runs of the bench verdict on the default bundle (default 10; --quick: 2); "
+                         "default-bundle: runs of tactile-force bench (at least 5 for a choice)")
+    ap.add_argument("--reports", nargs="+", type=Path, default=None,
+                    help="default-bundle: judge these earlier bench report.json files instead of running bench")
     ap.add_argument("--readings", type=within(int, READINGS), default=0,
                     help="instructions, footprint: readings counted per run (default 200 and 20; --quick: 20 and 5)")
-    ap.add_argument("--variants", nargs="*", default=None, choices=("default", "d", "rgbmod_d", "fast"),
-                    help="instructions: the shipped bundles to count (default, d, rgbmod_d; default all)")
+    ap.add_argument("--variants", nargs="*", default=None, choices=("default", "d", "rgbmod_d", "rgbmod_int8"),
+                    help="instructions, footprint: the shipped bundles to count (default all)")
     ap.add_argument("--paths", nargs="*", default=None, choices=("compiled", "opencv"),
                     help="instructions: the per-frame paths to count (default both: the compiled kernels and the "
                          "robot-side install's OpenCV path)")
@@ -186,6 +202,10 @@ def _main(argv: list[str] | None = None) -> int:
         from .instructions import run as run_instructions
 
         return run_instructions(args, argv)
+    if args.what == "default-bundle":
+        from .default_bundle import run as run_default_bundle
+
+        return run_default_bundle(args, argv)
     if args.what == "footprint":
         from .footprint import run as run_footprint
 

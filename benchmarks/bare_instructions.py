@@ -1,6 +1,6 @@
 """Instructions per bare model call, counted by valgrind's callgrind (load-independent).
 
-    python -m benchmarks.bare_instructions edge/models/default edge/models/fast [--calls 200]
+    python -m benchmarks.bare_instructions edge/models/rgbmod_int8 edge/models/default [--calls 200]
 
 For each bundle: one onnxruntime session (the package's :func:`session_options`, one
 thread) fed one reduced synthetic frame (batch 1, the bundle's network input) is run under

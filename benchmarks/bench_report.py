@@ -85,8 +85,8 @@ def _missed_lines(report: BenchReport) -> list[str]:
                 and c.bare_ms.p99 > report.budget_ms:
             out.append(f"{b.name}: its graph alone, in a bare onnxruntime session at {c.fps:g} fps, takes p99 "
                        f"{c.bare_ms.p99:.3f} ms > the {report.budget_ms:g} ms budget: no runtime around a network of "
-                       "this size holds the budget on this host; try a smaller one (edge/models/fast, "
-                       "tactile-force compress)")
+                       "this size holds the budget on this host; try a smaller one (the shipped default "
+                       "edge/models/default, or tactile-force compress)")
     return out
 
 

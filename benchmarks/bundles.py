@@ -95,15 +95,19 @@ def trained_models() -> list[TrainedModel]:
 
 
 def best_rgbmod_bundle() -> tuple[Path, str]:
-    """The default RGBmod the latency page measures, and which it is: the trained default config's int8 bundle,
-    else the shipped edge/models/default, else a random-weight bundle of that architecture."""
+    """The int8 RGBmod the latency page measures, and which it is: the trained config's int8 bundle,
+    else the shipped edge/models/rgbmod_int8, else a random-weight bundle of that architecture."""
     from tactile_force.edge.scene import default_bundle_path
+
+    from .reference_configs import INT8_FOLDER
+
+    int8 = default_bundle_path().parent / INT8_FOLDER
 
     trained = trained_models_dir() / DEFAULT_CONFIG / "int8"
     if (trained / "model.json").is_file():
         return trained, f"trained {DEFAULT_CONFIG} int8 (benchmarks/cache/models/{DEFAULT_CONFIG}/int8)"
-    if (default_bundle_path() / "model.json").is_file():
-        return default_bundle_path(), "shipped default bundle (edge/models/default)"
+    if (int8 / "model.json").is_file():
+        return int8, "shipped int8 RGBmod bundle (edge/models/rgbmod_int8)"
     cfg = parse_config(DEFAULT_CONFIG)
     return (latency_bundle(cfg, "int8-static"),
             f"RANDOM-weight {DEFAULT_CONFIG} int8 (not trained yet; same architecture and graph as the trained one)")

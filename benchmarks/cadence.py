@@ -214,7 +214,8 @@ def goals_table(rds: list[Round], bench: dict[str, list]) -> str:
              per_reading(f"{h}, after", "1 sensor, after"))):
         met = sum(v <= limit for v in after)
         rows.append([goal, f"<= {limit:g}", _span(before), _span(after), f"{met} of {len(after)} rounds"])
-    befores = {"default bundle": "1 of 10 runs (commit 8549ec9)", "fast bundle": "- (not shipped)"}
+    befores = {"default bundle": "0 of 5 runs (the fast fp32 RGBmod, default_bundle.md)",
+               "int8 RGBmod": "0 of 5 runs (default_bundle.md)"}
     for what, results in bench.items():
         if results:
             rows.append(_bench_row(what, results, befores.get(what, "-")))
@@ -257,8 +258,8 @@ def run(args, argv) -> int:
     from tactile_force.edge.scene import shipped_bundles
 
     runs = 2 if args.quick else args.bench_runs
-    fast = shipped_bundles().get("fast")
-    bench = {"default bundle": bench_passes(runs), "fast bundle": bench_passes(runs, fast) if fast else []}
+    int8 = shipped_bundles().get("rgbmod_int8")
+    bench = {"default bundle": bench_passes(runs), "int8 RGBmod": bench_passes(runs, int8) if int8 else []}
     state = window.stop()
     from tactile_force.edge.files.atomic import staged_file
     from tactile_force.edge.typed_json import to_json

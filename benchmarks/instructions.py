@@ -1,7 +1,7 @@
 """Work per reading, in instructions (instructions.md): what a ``ForceRuntime`` reading and the
 bare graph's call execute, counted by valgrind's callgrind, per shipped bundle.
 
-Per bundle (edge/models/default = RGBmod, d = D, rgbmod_d = RGBmod+D, fast = RGBmod fast) one worker process
+Per bundle (rgbmod_int8 = RGBmod, d = D, rgbmod_d = RGBmod+D, default = RGBmod fast) one worker process
 sets up, the same way in every run: virtual DIGIT frames in contact (rendered once, outside
 callgrind), a ``ForceRuntime`` over them (one sensor, an in-memory source read back to back,
 its gate's background captured from no-contact frames, warm-ups off, OpenCV on one thread as

@@ -8,13 +8,13 @@ from pathlib import Path
 #: (page, what it holds, the command that makes it; "" for pages whose code was retired)
 PAGES = (
     ("bench/report.md", "`tactile-force bench`, the installed robot-side verb (no torch): the four shipped "
-                        "bundles (RGBmod, RGBmod fast, D, RGBmod+D) through ForceRuntime on this host with the "
-                        "under-1 ms verdict per bundle and each graph alone at the cadence (+ report.json, "
-                        "pareto.png)",
+                        "bundles (the default fp32 RGBmod, the int8 RGBmod, D, RGBmod+D) through ForceRuntime on "
+                        "this host with the under-1 ms verdict per bundle and each graph alone at the cadence "
+                        "(+ report.json, pareto.png)",
      "tactile-force bench --out docs/benchmarks/bench"),
     ("cadence.md", "Latency at the sensor's cadence (60 fps): one sensor and eight phase-shifted against a bare "
                    "session at the same cadence, warm-ups off / on, where the cold time goes per stage, which parts "
-                   "of the warm-up pay, the bench verdict of the default and the fast bundle over several runs (+ "
+                   "of the warm-up pay, the bench verdict of the default and the int8 RGBmod over several runs (+ "
                    "cadence.json)",
      "python -m benchmarks cadence --out docs/benchmarks"),
     ("instructions.md", "Work per reading in instructions (valgrind's callgrind, load-independent): each shipped "
@@ -27,6 +27,10 @@ PAGES = (
                      "and of its bare graph call, per stage and shipped bundle (callgrind's cache simulator, "
                      "load-independent; the cold cost at the sensor's cadence) (+ footprint.json)",
      "python -m benchmarks footprint --out docs/benchmarks"),
+    ("default_bundle.md", "Which shipped bundle ships as the default: tactile-force bench run several times on one "
+                          "host, each bundle's p99 at 60 fps against its error, the Pareto front per run and the "
+                          "choice (+ default_bundle.json)",
+     "python -m benchmarks default-bundle --bench-runs 5 --out docs/benchmarks"),
     ("startup.md", "Start-up: process start to the first reading, per install (robot-side, with the fast extra), "
                    "with an empty and a warm cache, beside the import floor; the kernels' compile time; the demo's "
                    "first and second run (+ startup.json)",

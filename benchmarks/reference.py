@@ -7,7 +7,7 @@ model can be rebuilt by anyone:
     python -m benchmarks.reference                     # every config in CONFIGS
     python -m benchmarks.reference --configs rgbmod-w0.25-s4 --epochs 30
     python -m benchmarks.reference --default-bundle    # + install the trained default (full-resolution graph)
-    python -m benchmarks.reference --network-input-default   # edge/models/default as shipped (graph surgery)
+    python -m benchmarks.reference --network-input-int8      # edge/models/rgbmod_int8 as shipped (graph surgery)
 
 Recipe (the paper's hyperparameters where they fit a CPU budget), run by the package's one
 training loop (tactile_force.export.training, also used by ``tactile-force compress``): Adam,
@@ -31,8 +31,8 @@ installs the shipped compact D and RGBmod+D bundles (edge/models/d, edge/models/
 
     python -m benchmarks.reference --configs rgbmod-w0.125-s4-b1111 --fast-bundle
 
-trains the fast bundle's config (one residual block per stage) and installs it as
-edge/models/fast once its synthetic test RE is within 0.03 of the default's.
+trains the default bundle's config (one residual block per stage, fp32) and installs it as
+edge/models/default once its synthetic test RE is within 0.03 of the int8 RGBmod's.
 
 The recipe's parts: reference_configs.py (configs), reference_data.py (the synthetic dataset,
 depth images), reference_training.py (training, bundles), reference_install.py (the shipped
@@ -78,17 +78,18 @@ from .reference_data import (
     synthetic_test,
 )
 from .reference_install import (
-    DEFAULT_NOTE,
     DEPTH_NOTE,
     FAST_NOTE,
+    INT8_NOTE,
     REFERENCE_GRAPH,
     FastBundleError,
     attach_data_stats,
     default_data_stats,
-    install_default_bundle,
     install_fast_bundle,
+    install_int8_bundle,
     install_shipped_bundle,
-    network_input_default,
+    int8_bundle_path,
+    network_input_int8,
     strip_node_metadata,
 )
 from .reference_training import calibration_data, make_bundles, record_depth_mapping, train
@@ -99,9 +100,10 @@ __all__ = ["ABOVE_RANGE_SHARE", "CONFIGS", "DATASET_N", "DATASET_SEED", "DEFAULT
            "FAST_WIDTH", "SHIPPED_DEPTH_BUNDLES", "SPLIT", "THREADS", "TrainConfig", "log",
            "network_resolution", "Arrays", "dataset_options", "dataset_root", "depth_images",
            "ensure_dataset", "heldout_test_split", "load_arrays", "reduce_frames", "synthetic_test",
-           "DEFAULT_NOTE", "DEPTH_NOTE", "FAST_NOTE", "REFERENCE_GRAPH", "FastBundleError",
-           "attach_data_stats", "default_data_stats", "install_default_bundle", "install_fast_bundle",
-           "install_shipped_bundle", "network_input_default", "strip_node_metadata", "calibration_data",
+           "INT8_NOTE", "DEPTH_NOTE", "FAST_NOTE", "REFERENCE_GRAPH", "FastBundleError",
+           "attach_data_stats", "default_data_stats", "install_int8_bundle", "install_fast_bundle",
+           "install_shipped_bundle", "int8_bundle_path", "network_input_int8", "strip_node_metadata",
+           "calibration_data",
            "make_bundles", "record_depth_mapping", "train", "main"]
 
 
@@ -110,19 +112,20 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--configs", default=",".join(CONFIGS), help=f"comma list of {', '.join(CONFIGS)}")
     ap.add_argument("--epochs", type=int, default=None, help="override every config's epochs")
     ap.add_argument("--retrain", action="store_true", help="ignore cached checkpoints")
-    ap.add_argument("--default-bundle", action="store_true",
-                    help=f"install {DEFAULT_MODEL}'s int8 bundle as edge/models/default")
-    ap.add_argument("--network-input-default", action="store_true",
-                    help="rebuild edge/models/default as shipped: the default graph of benchmarks/reference_graphs "
+    ap.add_argument("--int8-bundle", action="store_true",
+                    help=f"install {DEFAULT_MODEL}'s int8 bundle as edge/models/rgbmod_int8")
+    ap.add_argument("--network-input-int8", action="store_true",
+                    help="rebuild edge/models/rgbmod_int8 as shipped: its graph of benchmarks/reference_graphs "
                          "cut at the network resolution (no training)")
     ap.add_argument("--shipped-bundles", action="store_true",
                     help="install the int8 bundles of " + ", ".join(SHIPPED_DEPTH_BUNDLES.values())
                     + " as edge/models/" + ", edge/models/".join(SHIPPED_DEPTH_BUNDLES))
     ap.add_argument("--fast-bundle", action="store_true",
-                    help=f"install {FAST_MODEL}'s fp32 bundle as edge/models/fast (train it: --configs {FAST_MODEL})")
+                    help=f"install {FAST_MODEL}'s fp32 bundle as edge/models/default "
+                         f"(train it: --configs {FAST_MODEL})")
     args = ap.parse_args(argv)
-    if args.network_input_default:
-        network_input_default()
+    if args.network_input_int8:
+        network_input_int8()
         return 0
     names = [c for c in args.configs.split(",") if c]
     unknown = [c for c in names if c not in CONFIGS]
@@ -142,9 +145,9 @@ def main(argv: list[str] | None = None) -> int:
         if args.retrain or not (out / "record.json").is_file():
             train(cfg, data, out)
         make_bundles(cfg, data, out, force=args.retrain)
-    if args.default_bundle:
-        path = install_default_bundle(cache_dir() / "models" / DEFAULT_MODEL / "int8")
-        log(f"installed default bundle at {path}")
+    if args.int8_bundle:
+        path = install_int8_bundle(cache_dir() / "models" / DEFAULT_MODEL / "int8")
+        log(f"installed the int8 RGBmod at {path}")
     if args.shipped_bundles:
         for folder, name in SHIPPED_DEPTH_BUNDLES.items():
             path = install_shipped_bundle(folder, cache_dir() / "models" / name / "int8")

@@ -60,7 +60,7 @@ FAST_WIDTH = 0.125
 #: Configs trained by default. Full resolution (k=1, width 1) is ~2.8 GMAC a frame and
 #: takes hours per epoch on a 2-core CPU: it is benchmarked for latency only.
 CONFIGS: dict[str, TrainConfig] = {c.name: c for c in [
-    TrainConfig("rgbmod", 0.25, 4, epochs=30),  # the embedded default model
+    TrainConfig("rgbmod", 0.25, 4, epochs=30),  # the shipped int8 RGBmod (edge/models/rgbmod_int8)
     TrainConfig("d", 0.25, 4, epochs=15),
     TrainConfig("dmod", 0.25, 4, epochs=15),
     TrainConfig("rgbmod+d", 0.25, 4, epochs=15),
@@ -71,8 +71,8 @@ CONFIGS: dict[str, TrainConfig] = {c.name: c for c in [
     # each int8 graph at a few hundred kB; 60 epochs: about 4 and 9 min on one shared core
     TrainConfig("d", 0.125, 4, epochs=60),
     TrainConfig("rgbmod+d", 0.125, 4, epochs=60),
-    # the fast bundle (edge/models/fast): one residual block per stage at the default's width
-    # and input, FAST_TARGETS below
+    # the default bundle (edge/models/default): one residual block per stage at half the int8
+    # RGBmod's width, the same input, FAST_TARGETS below
     TrainConfig("rgbmod", FAST_WIDTH, 4, epochs=30, blocks=(1, 1, 1, 1)),
 ]}
 
@@ -81,14 +81,19 @@ CONFIGS: dict[str, TrainConfig] = {c.name: c for c in [
 SHIPPED_DEPTH_BUNDLES = {"d": "d-w0.125-s4", "rgbmod_d": "rgbmod+d-w0.125-s4"}
 
 
+#: The shipped int8 RGBmod's folder under edge/models (the quantized export the paper's deployment names).
+INT8_FOLDER = "rgbmod_int8"
+
+
+#: The int8 RGBmod's config (edge/models/rgbmod_int8; the shipped default until the fp32 FAST_MODEL replaced it).
 DEFAULT_MODEL = "rgbmod-w0.25-s4"
 
 
-#: The fast shipped bundle (edge/models/fast): RGBmod with one residual block per stage;
-#: ``--fast-bundle`` installs it. Its goals against the default, both measured on this recipe:
-#: at most FAST_TARGETS["instructions"] x the default's instructions per bare call
+#: The shipped default (edge/models/default): RGBmod with one residual block per stage, fp32;
+#: ``--fast-bundle`` installs it. Its goals against the int8 RGBmod, both measured on this recipe:
+#: at most FAST_TARGETS["instructions"] x its instructions per bare call
 #: (benchmarks/bare_instructions.py) and RE on the synthetic test split within
-#: FAST_TARGETS["re_margin"] of the default's.
+#: FAST_TARGETS["re_margin"] of its RE.
 FAST_MODEL = f"rgbmod-w{FAST_WIDTH:g}-s4-b1111"
 
 

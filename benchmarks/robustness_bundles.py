@@ -28,8 +28,8 @@ from .robustness_table import rows
 Case = tuple[str, Callable[[], Verdict]]
 
 
-def _edited(dest: Path, edit: Callable[[dict], None]) -> Path:
-    shutil.copytree(default_bundle_dir(), dest)
+def _edited(dest: Path, edit: Callable[[dict], None], src: Path | None = None) -> Path:
+    shutil.copytree(src or default_bundle_dir(), dest)
     raw = json.loads((dest / "model.json").read_text())
     edit(raw)
     (dest / "model.json").write_text(json.dumps(raw, indent=2))
@@ -45,8 +45,9 @@ def _linked(dest: Path, name: str) -> Path:
 
 
 def _maker(row: dict[str, Any]) -> Callable[[Path], Path]:
-    """How one ``[[bundle_lie]]`` row's bundle is made under a folder: model.json keys set (a
-    dotted key reaches into a record), two keys of a record swapped, or a file linked from outside."""
+    """How one ``[[bundle_lie]]`` row's bundle is made under a folder, from a copy of the shipped
+    bundle its ``bundle`` names (default: the default): model.json keys set (a dotted key reaches
+    into a record), two keys of a record swapped, or a file linked from outside."""
     if "link" in row:
         return lambda d: _linked(d, row["link"])
 
@@ -60,7 +61,8 @@ def _maker(row: dict[str, Any]) -> Callable[[Path], Path]:
         if "swap" in row:
             record, a, b = row["swap"]
             m[record][a], m[record][b] = m[record][b], m[record][a]
-    return lambda d: _edited(d, edit)
+    src = default_bundle_dir().parent / row["bundle"] if "bundle" in row else None
+    return lambda d: _edited(d, edit, src)
 
 
 #: (what, how the bundle is made under a folder, the words a refusal must hold): the rows of

@@ -296,8 +296,11 @@ def honest_cases(inputs: Inputs, examples: int) -> Cases:
     """bundle verify on manifests contradicting their graph, learning-time intervals, and
     scene show answering as run does."""
     default = default_bundle_dir()
-    claims: list[tuple[Path, str, tuple[str, ...], Any]] = [(default, "the shipped default bundle", (), None)]
-    claims += [(default, "default (int8-static)", ("precision",), p) for p in ("int8-dynamic", "fp16", "fp32")]
+    int8 = default.parent / "rgbmod_int8"
+    claims: list[tuple[Path, str, tuple[str, ...], Any]] = [(default, "the shipped default bundle", (), None),
+                                                            (int8, "the shipped int8 RGBmod", (), None)]
+    claims += [(default, "default (fp32)", ("precision",), p) for p in ("int8-static", "int8-dynamic", "fp16")]
+    claims += [(int8, "int8 RGBmod (int8-static)", ("precision",), p) for p in ("int8-dynamic", "fp16", "fp32")]
     claims += [(default, "default (input scale 0.25)", ("architecture", "input_scale"), s) for s in (0.125, 0.5, 1.0)]
     if inputs.fp32 is not None:
         claims.append((inputs.fp32, "tiny fp32", (), None))

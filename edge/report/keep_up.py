@@ -64,7 +64,7 @@ class KeepUpWatch:
             self.warned = True
             self.stream.write(f"\nwarning: this host is not keeping up: over {100 * WARN_SHARE:g} % of the readings "
                               f"late or stale for {WARN_WINDOWS * self._window_s:g} s. Fewer sensors, a lower --fps, "
-                              "or the fast bundle (--bundle with edge/models/fast); 'tactile-force bench' measures "
+                              "or a smaller bundle (tactile-force compress); 'tactile-force bench' measures "
                               "what this host holds\n")
         self.stream.flush()
         self._n = self._late = self._stale = 0

@@ -46,10 +46,10 @@ def shipped_bundles() -> dict[str, Path]:
     Returns
     -------
     dict[str, pathlib.Path]
-        ``{"default": .../models/default, "d": .../models/d, "rgbmod_d": .../models/rgbmod_d}``
-        in this install: every folder of ``<package>/models`` holding a ``model.json`` (the
-        compact RGBmod default, and compact D and RGBmod+D bundles trained on the virtual
-        DIGIT's synthetic frames only). Empty when none is installed.
+        ``{"default": .../models/default, "d": ..., "rgbmod_d": ..., "rgbmod_int8": ...}`` in this
+        install: every folder of ``<package>/models`` holding a ``model.json`` (the default, a
+        small fp32 RGBmod; an int8 RGBmod, and int8 D and RGBmod+D bundles; all trained on the
+        virtual DIGIT's synthetic frames only). Empty when none is installed.
     """
     root = default_bundle_path().parent
     found = sorted(p for p in root.iterdir() if p.is_dir() and (p / "model.json").is_file()) if root.is_dir() else []

@@ -24,7 +24,7 @@ from tactile_force.benchmarks.bench import (
 from tactile_force.benchmarks.harness.budget import BudgetVerdict, judge
 from tactile_force.benchmarks.harness.machine import MachineState
 from tactile_force.edge.cli import main
-from tactile_force.edge.scene import shipped_bundles, default_bundle_path
+from tactile_force.edge.scene import default_bundle_path, shipped_bundles
 
 # 200 fps keeps the cadence run short (150 frames with the warm-up: 0.75 s per bundle); 120
 # readings leave room for a few frames a busy test machine is late for above the 100 a p99 needs
@@ -57,7 +57,7 @@ def test_report_json_is_the_documented_contract(tmp_path, capsys):
     assert {"path", "variant", "precision", "total_ms", "stages_ms", "error", "verdict"} <= b.keys()
     assert {"p50", "p99"} <= b["total_ms"].keys() and b["total_ms"]["p99"] >= b["total_ms"]["p50"] > 0
     assert {"gate", "inference", "total"} <= b["stages_ms"].keys() and "depth" not in b["stages_ms"]
-    assert b["error"] is None and b["variant"] == "rgbmod" and b["precision"] == "int8-static"
+    assert b["error"] is None and b["variant"] == "rgbmod" and b["precision"] == "fp32"
     assert Path(b["path"]) == default_bundle_path()
     c = b["cadence"]
     assert {"fps", "total_ms", "cpu_share"} <= c.keys() and c["fps"] == 200.0
@@ -124,7 +124,7 @@ def test_a_graph_that_alone_misses_the_budget_at_the_cadence_is_named_as_the_flo
     raw["bundles"][0]["verdict"] = raw["verdict"] = "OVER_BUDGET"
     over = BenchReport.from_json(raw)
     for text in (text_table(over), markdown(over)):
-        assert "its graph alone" in text and "1.300 ms > the 1 ms budget" in text and "edge/models/fast" in text
+        assert "its graph alone" in text and "1.300 ms > the 1 ms budget" in text and "edge/models/default" in text
     fast_floor = dict(cadence, bare_ms={**slow, "p99": 0.6})  # the graph fits: the runtime around it does not
     raw["bundles"][0]["cadence"] = fast_floor
     assert "its graph alone" not in text_table(BenchReport.from_json(raw))
@@ -406,5 +406,5 @@ def test_bench_refuses_a_bundle_whose_manifest_the_graph_contradicts(tmp_path):
     pool = contact_frames(8)
     with pytest.raises(BundleError, match=f"{lie}.*precision: the manifest says int8-static but the graph is fp32"):
         bench_bundle(lie, pool, frames=5, repeats=1, warmup=1)
-    honest = bench_bundle(default_bundle_path(), pool, frames=5, repeats=1, warmup=1)
+    honest = bench_bundle(shipped_bundles()["rgbmod_int8"], pool, frames=5, repeats=1, warmup=1)
     assert honest.precision == "int8-static" and "manifest says" not in honest.note

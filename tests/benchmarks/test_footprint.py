@@ -27,7 +27,7 @@ def test_totals_read_the_events_of_a_dump(tmp_path: Path) -> None:
 @needs_valgrind
 def test_a_reading_touches_its_frame_and_at_least_its_bare_call(tmp_path: Path) -> None:
     out = tmp_path / "out"
-    p = subprocess.run([sys.executable, "-m", "tactile_force.benchmarks", "footprint", "--quick", "--variants", "fast",
+    p = subprocess.run([sys.executable, "-m", "tactile_force.benchmarks", "footprint", "--quick", "--variants", "default",
                         "--paths", "opencv", "--out", str(out)], capture_output=True, text=True, timeout=900)
     assert p.returncode == 0, p.stderr
     rec = json.loads((out / "footprint.json").read_text())

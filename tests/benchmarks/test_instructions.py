@@ -83,8 +83,8 @@ def test_a_runtime_reading_counts_at_least_its_bare_call(tmp_path: Path) -> None
         assert rec[key], key
     assert rec["readings"] == 20
     v, lean = rec["variants"]  # the compiled kernels, then the robot-side install's OpenCV path
-    assert (v["label"], v["path"], lean["label"], lean["path"]) == ("RGBmod", "compiled", "RGBmod (OpenCV path)",
-                                                                      "opencv")
+    assert (v["label"], v["path"], lean["label"], lean["path"]) == ("RGBmod fast", "compiled",
+                                                                      "RGBmod fast (OpenCV path)", "opencv")
     counts = v["counts"]
     assert {"runtime", "bare", "gate", "downscale", "downscale_opencv"} <= set(counts)
     for c in counts.values():

@@ -96,10 +96,11 @@ def test_export_records_blocks_and_a_manifest_without_them_means_resnet18(tmp_pa
         assert np.all(np.isfinite(m.predict(frame)))
     finally:
         m.close()
-    # a bundle written before the field existed (the shipped default's manifest has none): ResNet-18's
-    raw = json.loads((default_bundle_path() / "model.json").read_text())
+    # a bundle written before the field existed (the shipped int8 RGBmod's manifest has none): ResNet-18's
+    int8 = default_bundle_path().parent / "rgbmod_int8"
+    raw = json.loads((int8 / "model.json").read_text())
     assert "blocks" not in raw["architecture"]
-    assert load_bundle(default_bundle_path()).manifest.architecture.blocks == [2, 2, 2, 2]
+    assert load_bundle(int8).manifest.architecture.blocks == [2, 2, 2, 2]
     with pytest.raises(TypedJsonError, match="blocks"):
         from_json(Architecture, {**raw["architecture"], "blocks": [1, 1, 1]}, "architecture")
     # the field is read from the manifest (the file hash covers the graph, not the record)
@@ -144,6 +145,7 @@ def test_error_steps_say_what_each_step_down_costs():
 
 
 def test_shipped_manifests_still_load(tmp_path):
-    for folder in ("default", "d", "rgbmod_d"):
+    for folder in ("rgbmod_int8", "d", "rgbmod_d"):
         path = Path(default_bundle_path()).parent / folder
         assert load_bundle(path).manifest.architecture.blocks == [2, 2, 2, 2]
+    assert load_bundle(default_bundle_path()).manifest.architecture.blocks == [1, 1, 1, 1]

@@ -99,7 +99,8 @@ def test_an_int8_bundle_is_refused(tmp_path, capsys, tiny):
     from tactile_force.edge.scene import default_bundle_path
 
     _, data = tiny
-    assert main(["study", str(default_bundle_path()), "--data", str(data), "--out", str(tmp_path / "o")]) == 2
+    int8 = default_bundle_path().parent / "rgbmod_int8"
+    assert main(["study", str(int8), "--data", str(data), "--out", str(tmp_path / "o")]) == 2
     assert "fp32" in capsys.readouterr().err
 
 

@@ -53,7 +53,7 @@ def _depth_on_rgbmod(m: dict) -> None:
 #: (case, how the bundle is made, words the refusal must hold: the failing field or file)
 CASES = [
     ("int8-dynamic claim", lambda d: _edited(d, lambda m: m.update(precision="int8-dynamic")),
-     ["precision", "int8-dynamic", "int8-static"]),
+     ["precision", "int8-dynamic", "fp32"]),
     ("input_scale 0.5", lambda d: _edited(d, lambda m: m["architecture"].update(input_scale=0.5)),
      ["architecture.input_scale 0.5", "80 x 60"]),
     ("model.onnx linked from outside", lambda d: _linked(d, "model.onnx"), ["model.onnx ->", "outside the bundle"]),

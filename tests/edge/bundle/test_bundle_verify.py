@@ -10,7 +10,7 @@ import sys
 
 from tactile_force.edge.bundle.store import load_bundle
 from tactile_force.edge.cli import main as cli_main
-from tactile_force.edge.scene import default_bundle_path
+from tactile_force.edge.scene import default_bundle_path, shipped_bundles
 
 
 def _relabel(src, dest, precision: str):
@@ -48,9 +48,9 @@ def test_an_fp32_graph_whose_manifest_says_int8_static_fails_verify(make_bundle,
 
 def test_a_real_int8_graph_passes_and_fails_when_it_claims_fp32(tmp_path, capsys, monkeypatch):
     _no_onnx(monkeypatch)
-    rc, out = _verify(default_bundle_path(), capsys)
+    rc, out = _verify(shipped_bundles()["rgbmod_int8"], capsys)
     assert rc == 0, out
-    rc, out = _verify(_relabel(default_bundle_path(), tmp_path / "claims-fp32", "fp32"), capsys)
+    rc, out = _verify(_relabel(shipped_bundles()["rgbmod_int8"], tmp_path / "claims-fp32", "fp32"), capsys)
     assert rc == 1 and "fp32" in out and "DequantizeLinear" in out
 
 
@@ -81,7 +81,8 @@ def _edited(src, dest, edit):
 
 def test_a_static_int8_graph_whose_manifest_says_int8_dynamic_fails_verify(tmp_path, capsys, monkeypatch):
     _no_onnx(monkeypatch)
-    lie = _edited(default_bundle_path(), tmp_path / "claims-dynamic", lambda m: m.update(precision="int8-dynamic"))
+    int8 = shipped_bundles()["rgbmod_int8"]
+    lie = _edited(int8, tmp_path / "claims-dynamic", lambda m: m.update(precision="int8-dynamic"))
     rc, out = _verify(lie, capsys)
     assert rc == 1 and "int8-dynamic" in out and "int8-static" in out and "QuantizeLinear" in out, out
     assert "Traceback" not in out
@@ -106,7 +107,7 @@ def test_a_manifest_input_scale_contradicting_the_graph_input_fails_verify(tmp_p
 
 def test_the_precision_verify_finds_on_every_kind_of_graph(make_bundle, tmp_path):
     """One reading of the graph (graph_facts.graph_precision) for verify and bench: the shipped
-    int8-static graphs and the fp32 fast one, an fp32 graph, its fp16 conversion and its dynamic int8 quantization."""
+    int8-static graphs and the fp32 default, an fp32 graph, its fp16 conversion and its dynamic int8 quantization."""
     import onnx
     from onnx import TensorProto, helper
     from onnxruntime.quantization import QuantType, quantize_dynamic
@@ -114,7 +115,7 @@ def test_the_precision_verify_finds_on_every_kind_of_graph(make_bundle, tmp_path
     from tactile_force.edge.bundle.graph_facts import graph_facts, graph_precision, manifest_problems
     from tactile_force.edge.scene import shipped_bundles
 
-    shipped = {"default": "int8-static", "d": "int8-static", "rgbmod_d": "int8-static", "fast": "fp32"}
+    shipped = {"default": "fp32", "d": "int8-static", "rgbmod_d": "int8-static", "rgbmod_int8": "int8-static"}
     for name, path in shipped_bundles().items():
         b = load_bundle(path)
         facts = graph_facts(b.onnx_path)
@@ -143,7 +144,7 @@ def test_the_precision_verify_finds_on_every_kind_of_graph(make_bundle, tmp_path
 
 def test_a_manifest_whose_blocks_or_width_contradict_the_graph_fails_verify_and_every_loader(tmp_path, capsys,
                                                                                                monkeypatch):
-    """The fast bundle's graph is one residual block per stage at width 1/8 (12 convolutions, a stem of
+    """The default bundle's graph (the fast RGBmod) is one residual block per stage at width 1/8 (12 convolutions, a stem of
     8 channels); a manifest claiming ResNet-18's blocks, one more block, or another width is refused by
     verify and by load_bundle (every loader), naming the field and what the graph holds."""
     import pytest
@@ -151,7 +152,7 @@ def test_a_manifest_whose_blocks_or_width_contradict_the_graph_fails_verify_and_
     from tactile_force.edge.scene import shipped_bundles
 
     _no_onnx(monkeypatch)
-    fast = shipped_bundles()["fast"]
+    fast = shipped_bundles()["default"]
     rc, out = _verify(fast, capsys)
     assert rc == 0, out
     for i, (arch, said) in enumerate((({"blocks": [2, 2, 2, 2]}, "architecture.blocks [2, 2, 2, 2]"),

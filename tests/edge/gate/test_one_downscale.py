@@ -62,8 +62,10 @@ def test_default_bundle_starts_at_the_network_resolution():
     (spec,) = m.inputs
     assert spec.shape == [-1, 80, 60, 3] and spec.layout == "NHWC" and spec.colour_order == "BGR"
     assert spec.reduction == FrameReduction(Reduction.AREA_2X_STEPS, 4)
-    assert "AveragePool" not in m.quantization.op_counts  # the shrink left the graph
-    assert abs(m.error.vs_truth.re_mean - 0.078) <= 0.005
+    from tactile_force.edge.bundle.graph_facts import graph_facts
+
+    assert "AveragePool" not in graph_facts(default_bundle_path() / "model.onnx").ops  # the shrink left the graph
+    assert m.error.vs_truth.re_mean <= 0.08
 
 
 def test_predict_on_full_frames_equals_predict_on_the_reduced_image():

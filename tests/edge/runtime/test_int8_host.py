@@ -14,13 +14,13 @@ from tactile_force.edge.scene import shipped_bundles
 
 from tests.conftest import ListSource
 
-INT8 = ["default", "d", "rgbmod_d"]
+INT8 = ["rgbmod_int8", "d", "rgbmod_d"]
 
 
 def test_the_shipped_int8_graphs_use_8_bit_weights_and_the_fp32_one_none():
     for name in INT8:
         assert graph_facts(load_bundle(shipped_bundles()[name]).onnx_path).int8_weight_max > int8_host.SAFE_WEIGHT
-    assert graph_facts(load_bundle(shipped_bundles()["fast"]).onnx_path).int8_weight_max == 0
+    assert graph_facts(load_bundle(shipped_bundles()["default"]).onnx_path).int8_weight_max == 0
 
 
 def test_unfused_exactly_where_8_bit_weights_meet_16_bit_sums(monkeypatch):

@@ -20,7 +20,7 @@ from tactile_force.edge.synthetic import DatasetOptions, generate_dataset, paper
 def bundle():
     path = default_bundle_path()
     if not (path / "model.onnx").is_file():
-        pytest.skip(f"default bundle not built at {path} (python -m benchmarks.reference --default-bundle)")
+        pytest.skip(f"default bundle not built at {path} (python -m benchmarks.reference --fast-bundle)")
     return load_bundle(path)
 
 
@@ -28,7 +28,7 @@ def test_default_bundle_hash_matches_manifest(bundle):
     raw = json.loads((bundle.path / "model.json").read_text())
     assert sha256_file(bundle.onnx_path) == raw["sha256"]
     assert bundle.manifest.variant == "rgbmod"
-    assert bundle.manifest.precision == "int8-static"
+    assert bundle.manifest.precision == "fp32"
 
 
 def test_default_bundle_says_it_is_synthetic(bundle):
