@@ -103,8 +103,10 @@ def page(runs: list[list[Point]], reports: list[BenchReport], command: str, meas
                      _span([p.p99 for p in ps]), _span(bare) if bare else "-", b2b,
                      f"{sum(p.verdict == 'PASS' for p in ps)} of {len(ps)}",
                      f"{sum(n in f for f in fronts)} of {len(runs)}" if ps[0].variant in RGB_VARIANTS else "-"])
+    how = "; ".join(dict.fromkeys(f"`{r.command}`" for r in reports if r.command)) or "`tactile-force bench`"
     notes = (f"{len(runs)} runs of `tactile-force bench` (60 fps, budget p99 <= 1 ms, one thread) on one host, "
-             f"measured at {measured_at}; per cell the median (min-max) over runs. RE: each bundle's manifest RE on "
+             f"measured at {measured_at} ({how}; `--bench-runs N` runs them itself); per cell the median "
+             "(min-max) over runs. RE: each bundle's manifest RE on "
              "the synthetic test split (the same 424 frames for the RGBmod bundles). Front: the runs in which the "
              "bundle was on the Pareto front of (RE, total p99 at 60 fps) among the RGB bundles (a depth bundle "
              "needs a depth calibration of the user's sensor before it reads; it does not compete).")

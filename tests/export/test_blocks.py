@@ -105,8 +105,8 @@ def test_export_records_blocks_and_a_manifest_without_them_means_resnet18(tmp_pa
         from_json(Architecture, {**raw["architecture"], "blocks": [1, 1, 1]}, "architecture")
     # the field is read from the manifest (the file hash covers the graph, not the record)
     copy = tmp_path / "copy"
-    shutil.copytree(default_bundle_path(), copy)
-    raw["architecture"]["blocks"] = [1, 1, 1, 1]  # a claim the default's graph (two blocks per stage) contradicts
+    shutil.copytree(int8, copy)
+    raw["architecture"]["blocks"] = [1, 1, 1, 1]  # a claim the int8 graph (two blocks per stage) contradicts
     (copy / "model.json").write_text(json.dumps(raw))
     from tactile_force.edge.errors import BundleError
 
