@@ -97,11 +97,9 @@ def trained_models() -> list[TrainedModel]:
 def best_rgbmod_bundle() -> tuple[Path, str]:
     """The int8 RGBmod the latency page measures, and which it is: the trained config's int8 bundle,
     else the shipped edge/models/rgbmod_int8, else a random-weight bundle of that architecture."""
-    from tactile_force.edge.scene import default_bundle_path
+    from .reference_configs import int8_bundle_path
 
-    from .reference_configs import INT8_FOLDER
-
-    int8 = default_bundle_path().parent / INT8_FOLDER
+    int8 = int8_bundle_path()
 
     trained = trained_models_dir() / DEFAULT_CONFIG / "int8"
     if (trained / "model.json").is_file():

@@ -20,10 +20,10 @@ import statistics
 import subprocess
 import sys
 import tempfile
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from .bench_contract import BenchReport, BundleResult, read_report
+from .bench_contract import BenchReport, read_report
 from .harness.stats import markdown_table
 
 #: the variants that compete for the default: those reading the RGB image alone
@@ -55,12 +55,12 @@ def points(report: BenchReport) -> list[Point]:
         if c is None or b.manifest_re is None or c.total_ms.p99 is None or c.total_ms.p50 is None:
             continue
         out.append(Point(b.name, Path(b.path).name, b.variant, float(b.manifest_re), c.total_ms.p50, c.total_ms.p99,
-                         c.bare_ms.p99 if c.bare_ms is not None else None, _b2b(b, 50), _b2b(b, 99), b.verdict))
+                         c.bare_ms.p99 if c.bare_ms is not None else None, _ms(b.total_ms.p50), _ms(b.total_ms.p99),
+                         b.verdict))
     return out
 
 
-def _b2b(b: BundleResult, q: int) -> float:
-    v = b.total_ms.p50 if q == 50 else b.total_ms.p99
+def _ms(v: float | None) -> float:
     return float("nan") if v is None else float(v)
 
 
@@ -143,7 +143,7 @@ def _measured_at(report_json: Path) -> str:
 def run(args: argparse.Namespace, argv: list[str]) -> int:
     """``python -m benchmarks default-bundle``: bench runs (or ``--reports``) -> default_bundle.md + .json."""
     from .harness.machine import command_line
-    from .harness.paths import source_commit
+    from .harness.paths import source_commit, write_record_and_page
 
     with tempfile.TemporaryDirectory(prefix="default-bundle-") as d:
         paths = list(args.reports) if args.reports else _bench_runs(args.bench_runs, Path(d))
@@ -151,14 +151,8 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
         runs = [points(r) for r in reports]
         at = _measured_at(paths[0]) if args.reports else f"commit {source_commit()}"
     text = page(runs, reports, command_line(argv), at)
-    args.out.mkdir(parents=True, exist_ok=True)
-    from tactile_force.edge.files.atomic import staged_file
-
-    record = {"measured_at": at, "chosen": choose(runs), "runs": [[p.__dict__ for p in r] for r in runs]}
-    with staged_file(args.out / "default_bundle.json") as tmp:
-        tmp.write_text(json.dumps(record, indent=1) + "\n")
-    with staged_file(args.out / "default_bundle.md") as tmp:
-        tmp.write_text(text)
+    record = {"measured_at": at, "chosen": choose(runs), "runs": [[asdict(p) for p in r] for r in runs]}
+    written = write_record_and_page(args.out, "default_bundle", json.dumps(record, indent=1) + "\n", text)
     print(text)
-    print(f"wrote {args.out / 'default_bundle.md'}")
+    print(f"wrote {written}")
     return 0

@@ -220,7 +220,7 @@ def page(rec: Record) -> str:
 def run(args: argparse.Namespace, argv: list[str]) -> int:
     """``python -m benchmarks footprint``: count, write footprint.json then .md to ``args.out``."""
     from .harness.machine import command_line, describe_machine
-    from .harness.paths import source_commit
+    from .harness.paths import source_commit, write_record_and_page
     from .instructions import PATHS, VARIANTS, _frames_file, models_dir
 
     why = callgrind.unavailable("footprint")
@@ -240,7 +240,7 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
     m = describe_machine()
     rec = Record(command_line(argv), source_commit(), m.cpu, m.line(), readings, callgrind.version(), CACHES,
                  variants, time.monotonic() - t0)
-    callgrind.write_counted(args.out, "footprint", json.dumps(asdict(rec), indent=1) + "\n", page(rec))
+    write_record_and_page(args.out, "footprint", json.dumps(asdict(rec), indent=1) + "\n", page(rec))
     print(f"wrote {args.out / 'footprint.md'}")
     return 0
 

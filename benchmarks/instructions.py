@@ -267,7 +267,7 @@ def measure(readings: int, variants: list[str] | None = None, log=print,
 def run(args: argparse.Namespace, argv: list[str]) -> int:
     """``python -m benchmarks instructions``: count, write instructions.json then .md to ``args.out``."""
     from .harness.machine import command_line, describe_machine
-    from .harness.paths import source_commit
+    from .harness.paths import source_commit, write_record_and_page
 
     why = callgrind.unavailable("instructions")
     if why:
@@ -283,7 +283,7 @@ def run(args: argparse.Namespace, argv: list[str]) -> int:
     vg = callgrind.version()
     rec = Record(command_line(argv), source_commit(), m.cpu, m.line(), readings, FRAMES, WARMUP, vg, variants,
                  time.monotonic() - t0, before_commit, before)
-    callgrind.write_counted(args.out, "instructions", json.dumps(asdict(rec), indent=1) + "\n", page(rec))
+    write_record_and_page(args.out, "instructions", json.dumps(asdict(rec), indent=1) + "\n", page(rec))
     print(f"wrote {args.out / 'instructions.md'}")
     return 0
 

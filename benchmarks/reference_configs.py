@@ -7,6 +7,7 @@ from __future__ import annotations
 import os
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 #: Dataset used by every reference model (changing it changes every figure in docs/).
 DATASET_N = 4000
@@ -83,6 +84,13 @@ SHIPPED_DEPTH_BUNDLES = {"d": "d-w0.125-s4", "rgbmod_d": "rgbmod+d-w0.125-s4"}
 
 #: The shipped int8 RGBmod's folder under edge/models (the quantized export the paper's deployment names).
 INT8_FOLDER = "rgbmod_int8"
+
+
+def int8_bundle_path() -> Path:
+    """Where the shipped int8 RGBmod lives: <package>/models/rgbmod_int8."""
+    from tactile_force.edge.scene import default_bundle_path
+
+    return default_bundle_path().parent / INT8_FOLDER
 
 
 #: The int8 RGBmod's config (edge/models/rgbmod_int8; the shipped default until the fp32 FAST_MODEL replaced it).

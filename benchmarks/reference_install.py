@@ -14,7 +14,7 @@ from tactile_force.edge.scene import PACKAGE_DIR, default_bundle_path
 from .harness.data import predict_all
 from .harness.frames import network_reduction
 from .harness.paths import cache_dir, require_repo
-from .reference_configs import ABOVE_RANGE_SHARE, FAST_TARGETS, INT8_FOLDER, log
+from .reference_configs import ABOVE_RANGE_SHARE, FAST_TARGETS, int8_bundle_path, log
 from .reference_data import synthetic_test
 
 INT8_NOTE = ("Trained on SYNTHETIC frames from the package's virtual DIGIT only. RGBmod at width 0.25, quantized to "
@@ -35,10 +35,6 @@ def install_int8_bundle(int8_bundle: Path) -> Path:
     manifest.provenance.trained_on = "synthetic"
     return write_bundle(int8_bundle_path(), src.onnx_path.read_bytes(), manifest, overwrite=True).path
 
-
-def int8_bundle_path() -> Path:
-    """Where the shipped int8 RGBmod lives: <package>/models/rgbmod_int8."""
-    return PACKAGE_DIR / "models" / INT8_FOLDER
 
 
 #: The int8 RGBmod graph (the default until the fp32 one replaced it) as the reference recipe

@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from .harness.cases import Outcome, Verdict, accepted, cli_verdict, default_bundle_dir, refusal, worst
-from .robustness_table import rows
+from .robustness_table import rows, set_at
 
 Case = tuple[str, Callable[[], Verdict]]
 
@@ -53,11 +53,7 @@ def _maker(row: dict[str, Any]) -> Callable[[Path], Path]:
 
     def edit(m: dict) -> None:
         for dotted, value in row.get("set", {}).items():
-            *parents, key = dotted.split(".")
-            t = m
-            for p in parents:
-                t = t[p]
-            t[key] = value
+            set_at(m, dotted.split("."), value)
         if "swap" in row:
             record, a, b = row["swap"]
             m[record][a], m[record][b] = m[record][b], m[record][a]

@@ -27,7 +27,7 @@ from .harness.cases import (
     worst,
     write_frame_png,
 )
-from .robustness_table import fill, rows, section, values
+from .robustness_table import fill, rows, section, set_at, values
 
 # =============================================================================== frames
 _SHAPES = [tuple(shape) for shape in values("frame_shapes")]
@@ -157,12 +157,6 @@ def manifest_mutations(draw) -> tuple[str, Any]:
     return f"{tag}{'.'.join(map(str, path))} = {json.dumps(new)[:60]}", m
 
 
-def _set_at(tree: Any, path: list[Any], value: Any) -> None:
-    for k in path[:-1]:
-        tree = tree[k]
-    tree[path[-1]] = value
-
-
 def targeted_manifests() -> list[tuple[str, Any]]:
     """The hand-picked manifests (robustness_cases.toml ``[[manifest_lie]]``, each must be
     refused; ``[manifest_partial]`` records cut to their first key)."""
@@ -170,7 +164,7 @@ def targeted_manifests() -> list[tuple[str, Any]]:
     for row in rows("manifest_lie"):
         m = base_manifest()
         value = fill(row["value"], {"bundle": default_bundle_dir()})
-        _set_at(m, row["path"], value)
+        set_at(m, row["path"], value)
         out.append((f"MUST-REFUSE {'.'.join(map(str, row['path']))} = {json.dumps(value)}", m))
     for key in section("manifest_partial")["keys"]:
         m = base_manifest()

@@ -51,6 +51,13 @@ def label_tokens() -> list[bytes]:
     return [codecs.escape_decode(t.encode("latin-1"))[0] for t in values("label_tokens")]
 
 
+def set_at(tree: Any, path: list[Any], value: Any) -> None:
+    """Set ``value`` in nested dicts / lists ``tree`` at ``path`` (keys and indices)."""
+    for k in path[:-1]:
+        tree = tree[k]
+    tree[path[-1]] = value
+
+
 def fill(value: Any, places: Mapping[str, object]) -> Any:
     """``value`` (a word, a list of them, or any other value, kept) with every ``{name}`` in its
     words replaced by ``places[name]``."""
@@ -61,4 +68,4 @@ def fill(value: Any, places: Mapping[str, object]) -> Any:
     return value
 
 
-__all__ = ["CASES_FILE", "fill", "label_tokens", "rows", "section", "values"]
+__all__ = ["CASES_FILE", "fill", "label_tokens", "rows", "section", "set_at", "values"]

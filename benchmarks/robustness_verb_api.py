@@ -26,6 +26,7 @@ from .harness.cases import (
     with_timeout,
     worst,
 )
+from .reference_configs import int8_bundle_path
 from .robustness_inputs import guarded
 
 # ================================================================== shared inputs
@@ -296,7 +297,7 @@ def honest_cases(inputs: Inputs, examples: int) -> Cases:
     """bundle verify on manifests contradicting their graph, learning-time intervals, and
     scene show answering as run does."""
     default = default_bundle_dir()
-    int8 = default.parent / "rgbmod_int8"
+    int8 = int8_bundle_path()
     claims: list[tuple[Path, str, tuple[str, ...], Any]] = [(default, "the shipped default bundle", (), None),
                                                             (int8, "the shipped int8 RGBmod", (), None)]
     claims += [(default, "default (fp32)", ("precision",), p) for p in ("int8-static", "int8-dynamic", "fp16")]

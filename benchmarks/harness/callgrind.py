@@ -186,15 +186,3 @@ def unavailable(what: str) -> str:
         return (f"{what}: callgrind's client requests, which count each stage apart, are made here on x86-64 only, "
                 f"not {platform.machine()}. Nothing counted.")
     return ""
-
-
-def write_counted(out: Path, stem: str, record_json: str, page_md: str) -> Path:
-    """``stem``.json then ``stem``.md into the folder ``out`` (made if missing), each written whole
-    (staged, then renamed into place); returns the page's path."""
-    from tactile_force.edge.files.atomic import staged_file
-
-    out.mkdir(parents=True, exist_ok=True)
-    for name, text in ((f"{stem}.json", record_json), (f"{stem}.md", page_md)):
-        with staged_file(out / name) as tmp:
-            tmp.write_text(text)
-    return out / f"{stem}.md"

@@ -10,6 +10,7 @@
 - :func:`shared_data`: ``$TACTILE_FORCE_SHARED_DATA``; else ``shared/data`` beside the clone
   (the real sensor recordings, described by the README in that folder).
 - :func:`source_commit`: the commit the code that measures runs at, for a page's header.
+- :func:`write_record_and_page`: a page and its JSON record, each written whole.
 """
 
 from __future__ import annotations
@@ -102,3 +103,15 @@ def source_commit() -> str:
     except (OSError, subprocess.SubprocessError):
         return "unknown (git could not read the clone)"
     return f"{sha} with uncommitted changes to the code" if dirty else sha
+
+
+def write_record_and_page(out: Path, stem: str, record_json: str, page_md: str) -> Path:
+    """``stem``.json then ``stem``.md into the folder ``out`` (made if missing), each written whole
+    (staged, then renamed into place); returns the page's path."""
+    from tactile_force.edge.files.atomic import staged_file
+
+    out.mkdir(parents=True, exist_ok=True)
+    for name, text in ((f"{stem}.json", record_json), (f"{stem}.md", page_md)):
+        with staged_file(out / name) as tmp:
+            tmp.write_text(text)
+    return out / f"{stem}.md"
