@@ -25,8 +25,8 @@ class OracleDepth:
 
 def oracle_depth(stage: DepthStage, frame: np.ndarray, mask: np.ndarray) -> OracleDepth:
     """``frame``: the reduced h x w x 3 uint8 image, ``mask`` the reduced h x w uint8 mask; the
-    stage's tables (its LUT gradients, reduced background) and its Poisson solver are used, never its
-    per-frame buffers."""
+    stage's tables (its LUT gradients, reduced background, sine matrices, eigenvalues) are read,
+    never its per-frame buffers."""
     assert stage.lut is not None and stage.options.downscale > 1
     h, w = mask.shape
     zeros = np.zeros((h, w, 1), np.uint8)
@@ -59,14 +59,19 @@ def oracle_depth(stage: DepthStage, frame: np.ndarray, mask: np.ndarray) -> Orac
     gy[:-1, :] += gy[1:, :]
     gx *= 0.5
     gy *= 0.5
-    # the divergence and the DST-I solve (the stage's PoissonSolver: its transform is tested on its own,
-    # tests/edge/depth/test_sine_halves.py)
+    # the divergence and the DST-I solve (PoissonSolver, backend 'matmul')
     solver = stage.solver
     d = np.zeros((h - 1, w - 1), np.float32)
     np.subtract(gx[1:, 1:], gx[1:, :-1], out=d, casting="unsafe")
     d += gy[1:, 1:]
     d -= gy[:-1, 1:]
-    spec = solver.solve_divergence(d)
+    tmp = np.empty_like(d)
+    spec = np.empty_like(d)
+    np.matmul(solver._s_r, d, out=tmp)
+    np.matmul(tmp, solver._s_c, out=spec)
+    spec *= solver._inv_lam
+    np.matmul(solver._s_r, spec, out=tmp)
+    np.matmul(tmp, solver._s_c, out=spec)
     height = np.zeros((h, w), np.float32)
     height[1:, 1:] = spec
     if not np.isfinite(height).all():
