@@ -187,10 +187,9 @@ class BareOnnxRuntime:
         self.sess.run(self.out, {n: x[k:k + 1] for n, x in self.inputs.items()})
 
 
-def bare_at_cadence(bare: BareOnnxRuntime, n: int, fps: float) -> np.ndarray:
-    """``n`` calls of a bare session, one per 1/``fps`` tick, the thread sleeping between them
-    as a runtime does between a sensor's frames: ms per call (the floor no runtime around
-    this graph can beat at this cadence on this host)."""
+def paced(call: Callable[[int], object], n: int, fps: float) -> np.ndarray:
+    """``call(i)`` for i < ``n``, one per 1/``fps`` tick, the thread sleeping between them as a
+    runtime does between a sensor's frames: ms per call."""
     out = np.empty(n)
     period = 1.0 / fps
     t0 = time.perf_counter() + period
@@ -199,9 +198,15 @@ def bare_at_cadence(bare: BareOnnxRuntime, n: int, fps: float) -> np.ndarray:
         if rest > 0:
             time.sleep(rest)
         a = time.perf_counter_ns()
-        bare.run(i)
+        call(i)
         out[i] = (time.perf_counter_ns() - a) / 1e6
     return out
+
+
+def bare_at_cadence(bare: BareOnnxRuntime, n: int, fps: float) -> np.ndarray:
+    """``n`` calls of a bare session at ``fps`` (:func:`paced`): ms per call (the floor no runtime
+    around this graph can beat at this cadence on this host)."""
+    return paced(bare.run, n, fps)
 
 
 def auto_trial_frames(fps: float) -> int:

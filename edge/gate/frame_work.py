@@ -31,6 +31,10 @@ from .reduce import FrameReducer, default_reduction
 
 __all__ = ["FrameWork"]
 
+#: Rows the compiled blur and noise kernels work on at once: long loops over a scratch of this many rows,
+#: not of the whole image.
+BLUR_BAND = 8
+
 #: Thumbnail cell size in full-resolution pixels (a 320x240 frame -> 20x15 cells).
 THUMB_CELL_PX = 16
 
@@ -86,7 +90,8 @@ class FrameWork:
         blur3 = self.blur == 3 and wh >= 2 and ww >= 2
         #: the compiled kernels where this process has them (edge/compiled_path.py), else None: the OpenCV path
         self._k: ModuleType | None = compiled_path.gate_kernels()
-        self._t = np.empty(wh * ww * 3, np.uint16)  # the blur's vertical sums
+        self._t = np.empty(BLUR_BAND * ww * 3, np.uint16)  # the blur's vertical sums, a band of rows at a time
+        self._band = np.empty(BLUR_BAND * ww * 3, np.uint8)  # a band of the noise kernel's blurred rows
         self._v = np.empty((s, w * 3), np.uint8) if steps else None
         self._blur3 = blur3
         self._none = np.empty((0, ww * 3), np.uint8)  # "no blur" for the reduction kernel
@@ -96,8 +101,6 @@ class FrameWork:
         self._noise_kernel = self.sub is not None and blur3
         self._sub_blur = np.empty((wh, ww, 3), np.uint8)
         self._noise_d = np.empty((wh, ww, 3), np.uint8)
-        self._acc = np.empty(48, np.uint32)
-        self._sub_blur1 = self._sub_blur.reshape(-1)
         self._sums = np.zeros(3, np.int64)
         self._sub2 = self.sub.reshape(wh, ww * 3) if self.sub is not None else self._none
         self._noise_of: np.ndarray | None = None  # the frame whose noise level the last reduce measured
@@ -138,8 +141,8 @@ class FrameWork:
             blur3 = blur and self._blur3
             self._thumb_made = blur3 and self._f > 0
             k.reduce_blur(frame.reshape(h, w * 3), s, self._small2, self._work2 if blur3 else self._none,
-                                self._sub2 if noise else self._none, self._v, self._t, self._sub_blur1, self._acc,
-                                self._sums, self._f, self._thumb2 if self._thumb_made else self._no_thumb)
+                          self._sub2 if noise else self._none, self._v, self._t, self._band, self._sums, self._f,
+                          self._thumb2 if self._thumb_made else self._no_thumb)
             if noise:
                 self._noise_of, self._noise_level = frame, self._level()
             if blur and not self._blur3:
@@ -190,8 +193,7 @@ class FrameWork:
             return self._noise_level
         if self._noise_kernel and self._k is not None:
             h, w = self.shape[:2]
-            self._k.noise_sums(frame.reshape(h, w * 3), self.downscale, self._sub2, self._t, self._sub_blur1,
-                               self._acc, self._sums)
+            self._k.noise_sums(frame.reshape(h, w * 3), self.downscale, self._sub2, self._t, self._band, self._sums)
             return self._level()
         if self.sub is None:
             cv2.absdiff(self.small, self.work, dst=self._noise_d)

@@ -11,11 +11,13 @@ calls as the oracle):
   ``(a + b + c + d + 2) >> 2``, OpenCV ``INTER_AREA`` at exactly 1/2), computed over whole rows, the
   output keeping one value in k (:func:`_pick`: four pixels per three 32-bit stores where the
   addresses allow); the 3 x 3 Gaussian blur of the result (``cv2.GaussianBlur(src, (3, 3), 0)``:
-  weights 1-2-1 x 1-2-1, ``(sum + 8) >> 4``, ``BORDER_REFLECT_101``; :func:`blur3` alone); its
+  weights 1-2-1 x 1-2-1, ``(sum + 8) >> 4``, ``BORDER_REFLECT_101``, a band of rows at a time through a
+  scratch of that many rows; :func:`blur3` alone); its
   thumbnail (:func:`shrink`: ``cv2.resize`` INTER_LINEAR at an even factor); where asked, the noise
   sums below.
 - :func:`noise_sums`: the nearest subsample (``cv2.resize`` ``INTER_NEAREST`` at an integer factor:
-  pixel (k y, k x)), its 3 x 3 blur, and the per-channel sums of |sub - blur|.
+  pixel (k y, k x)), its 3 x 3 blur, and the per-channel sums of |sub - blur|, the blur a band of
+  rows at a time (no blurred image is kept).
 - :func:`changed`: the model ``gain x background + offset`` (the product and sum in float64,
   rounded to float32 once, as ``cv2.transform`` of a float32 image by a diagonal matrix),
   ``convertScaleAbs`` (|x| rounded half to even, saturated; NaN and |x| >= 2^31 give 0 as its int32
@@ -126,45 +128,69 @@ def _g(left, mid, right):  # pragma: no cover - compiled
     return np.uint8((np.int32(left) + 2 * np.int32(mid) + np.int32(right) + 8) >> 4)
 
 
+@_inline
+def _blur_band(x, n, h, y0, y1, t, out, o):  # pragma: no cover - compiled
+    """Rows ``y0`` .. ``y1 - 1`` (a band: as many as ``t`` holds) of the 3 x 3 Gaussian blur of ``x``
+    (flat, h rows of n = w*3 uint8, h and w >= 2) into ``out`` from flat offset ``o``, reflect-101
+    edges: the vertical sums ``up + 2 mid + down`` of the rows into ``t`` (uint16), then the horizontal
+    pass over all of them at once (a long loop: it vectorises); the values it mixes across a row's ends
+    are then made again as the row's edges."""
+    c = _U(_C)
+    c2 = _U(2 * _C)
+    hu = _U(h)
+    base = y0 * n
+    last = (hu - _U(1)) * n
+    if y0 == _U(0):  # reflect-101: row -1 is row 1
+        for i in range(n):
+            t[i] = np.uint16(2 * np.int32(x[n + i]) + 2 * np.int32(x[i]))
+    if y1 == hu:  # row h is row h-2
+        q = last - base
+        for i in range(n):
+            t[q + i] = np.uint16(2 * np.int32(x[last - n + i]) + 2 * np.int32(x[last + i]))
+    lo = max(y0, _U(1)) * n
+    hi = min(y1, hu - _U(1)) * n
+    for j in range(lo, hi):  # the rows inside: one long loop
+        t[j - base] = np.uint16(np.int32(x[j - n]) + 2 * np.int32(x[j]) + np.int32(x[j + n]))
+    size = (y1 - y0) * n
+    for j in range(size - c2):
+        out[o + j + c] = _g(t[j], t[j + c], t[j + c2])
+    for q in range(_U(0), size, n):
+        for ch in range(c):
+            out[o + q + ch] = _g(t[q + ch + c], t[q + ch], t[q + ch + c])
+            e = q + n - c + ch
+            out[o + e] = _g(t[e - c], t[e], t[e - c])
+
+
 @_jit
 def _blur(x, n, h, t, out):  # pragma: no cover - compiled
     """The 3 x 3 Gaussian blur of ``x`` (flat, h rows of n = w*3 uint8, h and w >= 2) into ``out``
-    (flat), reflect-101 edges. Whole-image loops (long ones vectorise best): the vertical sums
-    ``up + 2 mid + down`` into ``t`` (h*n uint16), then the horizontal pass over all rows at once;
-    the values it mixes across a row's ends are then written again as the row's edges."""
-    size = n * _U(h)
-    c = _U(_C)
-    c2 = _U(2 * _C)
-    last = size - n
-    for i in range(n):  # first and last rows: the reflected neighbour is the one inside
-        t[i] = np.uint16(2 * np.int32(x[n + i]) + 2 * np.int32(x[i]))
-        t[last + i] = np.uint16(2 * np.int32(x[last - n + i]) + 2 * np.int32(x[last + i]))
-    for j in range(n, last):
-        t[j] = np.uint16(np.int32(x[j - n]) + 2 * np.int32(x[j]) + np.int32(x[j + n]))
-    for j in range(size - c2):
-        out[j + c] = _g(t[j], t[j + c], t[j + c2])
-    for y in range(_U(h)):
-        o = y * n
-        for ch in range(c):
-            out[o + ch] = _g(t[o + ch + c], t[o + ch], t[o + ch + c])
-            e = o + n - c + ch
-            out[e] = _g(t[e - c], t[e], t[e - c])
+    (flat), reflect-101 edges, a band of rows at a time (:func:`_blur_band`; scratch ``t``: the band's
+    vertical sums, b*n uint16 for b >= 1 rows)."""
+    b = _U(t.shape[0]) // n
+    for y0 in range(_U(0), _U(h), b):
+        _blur_band(x, n, h, y0, min(y0 + b, _U(h)), t, out, y0 * n)
 
 
 @_jit
-def _noise(x, n, h, t, blurred, acc, sums):  # pragma: no cover - compiled
+def _noise(x, n, h, t, band, sums):  # pragma: no cover - compiled
     """Per-channel sums into ``sums`` (3 int64) of |x - blur(x)| (``x`` flat, h rows of n = w*3 uint8,
-    h and w >= 2). Scratch: ``t`` (h*n uint16), ``blurred`` (h*n uint8), ``acc`` (48 uint32: the
-    sums per value of 16 pixels, a block a vector loop takes whole)."""
-    _blur(x, n, h, t, blurred)
-    size = n * _U(h)
-    for j in range(size):
-        blurred[j] = np.uint8(abs(np.int32(x[j]) - np.int32(blurred[j])))
+    h and w >= 2), a band of b rows at a time: their blur into ``band`` (b*n uint8), then the
+    |difference| summed. Scratch: ``t`` (b*n uint16), ``band`` (b*n uint8), b >= 1: nothing of the
+    image's size."""
     s0 = s1 = s2 = np.uint64(0)
-    for j in range(size // _U(_C)):
-        s0 += np.uint64(blurred[_U(_C) * j])
-        s1 += np.uint64(blurred[_U(_C) * j + _U(1)])
-        s2 += np.uint64(blurred[_U(_C) * j + _U(2)])
+    c = _U(_C)
+    b = _U(min(t.shape[0], band.shape[0])) // n
+    for y0 in range(_U(0), _U(h), b):
+        y1 = min(y0 + b, _U(h))
+        _blur_band(x, n, h, y0, y1, t, band, _U(0))
+        r = y0 * n
+        size = (y1 - y0) * n
+        for j in range(size):
+            band[j] = np.uint8(abs(np.int32(x[r + j]) - np.int32(band[j])))
+        for j in range(size // c):
+            s0 += np.uint64(band[c * j])
+            s1 += np.uint64(band[c * j + _U(1)])
+            s2 += np.uint64(band[c * j + _U(2)])
     sums[0], sums[1], sums[2] = s0, s1, s2
 
 
@@ -187,13 +213,13 @@ def shrink(work, f, thumb):  # pragma: no cover - compiled
 
 
 @_jit
-def reduce_blur(frame, k, small, work, sub, v, t, blurred, acc, sums, tf, thumb):  # pragma: no cover - compiled
+def reduce_blur(frame, k, small, work, sub, v, t, band, sums, tf, thumb):  # pragma: no cover - compiled
     """``frame`` (H x W*3 uint8) reduced by the power of two ``k`` >= 2 into ``small`` (H/k x W/k*3);
     when ``work`` has rows (h, w >= 2) its 3 x 3 Gaussian blur into ``work`` and, when ``thumb`` has
     rows, ``work`` shrunk by ``tf`` into it (:func:`shrink`); when ``sub`` has rows
     (k > 2, h, w >= 2) the nearest subsample (pixel (k y, k x)) into ``sub`` and the noise sums of
-    :func:`noise_sums` into ``sums``, all in one call. Scratch: ``v`` (k x W*3 uint8), ``t`` (H/k*W/k*3
-    uint16), ``blurred`` (H/k*W/k*3 uint8), ``acc`` (48 uint32)."""
+    :func:`noise_sums` into ``sums``, all in one call. Scratch: ``v`` (k x W*3 uint8), ``t`` and ``band`` (b
+    >= 1 rows of the reduced image: b*W/k*3 uint16 and uint8: the blur's and the noise's band)."""
     h, mw = small.shape
     n = _U(frame.shape[1])
     w = _U(mw // _C)
@@ -215,14 +241,14 @@ def reduce_blur(frame, k, small, work, sub, v, t, blurred, acc, sums, tf, thumb)
         if thumb.shape[0] > 0:
             shrink(work, tf, thumb)
     if noise:
-        _noise(bf, _U(mw), h, t, blurred, acc, sums)
+        _noise(bf, _U(mw), h, t, band, sums)
 
 
 @_jit
-def noise_sums(frame, k, sub, t, blurred, acc, sums):  # pragma: no cover - compiled
+def noise_sums(frame, k, sub, t, band, sums):  # pragma: no cover - compiled
     """Per-channel sums into ``sums`` (3 int64) of |sub - blur(sub)|, ``sub`` the nearest subsample of
     ``frame`` (pixel (k y, k x), into ``sub``: h x w*3 uint8, h and w >= 2), blur the 3 x 3 Gaussian.
-    Scratch: ``t`` (h*w*3 uint16), ``blurred`` (h*w*3 uint8), ``acc`` (48 uint32)."""
+    Scratch: ``t`` (b*w*3 uint16), ``band`` (b*w*3 uint8), b >= 1 rows."""
     h, mw = sub.shape
     n = _U(frame.shape[1])
     step = _U(_C * k)
@@ -232,7 +258,7 @@ def noise_sums(frame, k, sub, t, blurred, acc, sums):  # pragma: no cover - comp
         and b32.size > 0
     for y in range(_U(h)):
         _pick(f, f32, _U(k) * y * n, step, bf, b32, y * _U(mw), _U(mw // _C), wide)
-    _noise(bf, _U(mw), h, t, blurred, acc, sums)
+    _noise(bf, _U(mw), h, t, band, sums)
 
 
 @_jit
@@ -353,7 +379,7 @@ def fit_sums(bg, thumb, y, model, tmodel, inl, tol, sums):  # pragma: no cover -
 @_jit
 def blur3(small, t, work):  # pragma: no cover - compiled
     """The 3 x 3 Gaussian blur of ``small`` (h x w*3 uint8, h and w >= 2) into ``work``; scratch ``t``
-    (h*w*3 uint16)."""
+    (b >= 1 rows: b*w*3 uint16)."""
     h, mw = small.shape
     _blur(small.reshape(small.size), _U(mw), h, t, work.reshape(work.size))
 
@@ -364,15 +390,15 @@ def warm() -> None:
     waits for it."""
     frame = np.zeros((8, 24), np.uint8)
     small, work, sub = (np.zeros((2, 6), np.uint8) for _ in range(3))
-    v, t, blurred = np.zeros((4, 24), np.uint8), np.zeros(12, np.uint16), np.zeros(12, np.uint8)
-    acc, sums = np.zeros(48, np.uint32), np.zeros(3, np.int64)
+    v, t, band = np.zeros((4, 24), np.uint8), np.zeros(6, np.uint16), np.zeros(6, np.uint8)
+    sums = np.zeros(3, np.int64)
     model = np.zeros((3, 4), np.float32)
     read_only = frame.copy()
     read_only.setflags(write=False)  # a read-only frame is another compiled form
     for f in (frame, read_only):
-        reduce_blur(f, 4, small, work, sub, v, t, blurred, acc, sums, 2, small[:1, :3])
-        reduce_blur(f, 4, small, work[:0], sub[:0], v, t, blurred, acc, sums, 2, small[:0])
-        noise_sums(f, 4, sub, t, blurred, acc, sums)
+        reduce_blur(f, 4, small, work, sub, v, t, band, sums, 2, small[:1, :3])
+        reduce_blur(f, 4, small, work[:0], sub[:0], v, t, band, sums, 2, small[:0])
+        noise_sums(f, 4, sub, t, band, sums)
     blur3(small, t, work)
     changed(np.zeros((2, 6), np.float32), model, work, small, np.zeros((2, 2), np.uint8), 10, np.zeros(6),
             np.zeros(6))

@@ -84,11 +84,14 @@ def test_thumbnail_shrink_equals_opencv_linear_at_even_factors(f, h, w, seed, st
 
 
 @_SETTINGS
-@given(h=st.integers(2, 41), w=st.integers(2, 41), seed=st.integers(0, 2**31), style=st.integers(0, 2))
-def test_blur_equals_opencv_gaussian_3x3_with_its_reflect_101_edges(h, w, seed, style):
+@given(h=st.integers(2, 41), w=st.integers(2, 41), seed=st.integers(0, 2**31), style=st.integers(0, 2),
+       band=st.integers(1, 45))
+def test_blur_equals_opencv_gaussian_3x3_with_its_reflect_101_edges(h, w, seed, style, band):
+    """In bands of any number of rows (the scratch's: one row, a band that does not divide the image,
+    more rows than it has)."""
     img = _image(seed, (h, w, 3), style)
     out = np.empty_like(img)
-    K.blur3(img.reshape(h, w * 3), np.empty(h * w * 3, np.uint16), out.reshape(h, w * 3))
+    K.blur3(img.reshape(h, w * 3), np.empty(band * w * 3, np.uint16), out.reshape(h, w * 3))
     assert np.array_equal(out, cv2.GaussianBlur(img, (3, 3), 0))
 
 
