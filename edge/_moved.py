@@ -130,6 +130,9 @@ GONE: dict[str, dict[str, str]] = {
 GONE_MODULES: dict[str, str] = {
     "export.measure": "latency is measured by 'tactile-force bench' (tactile_force.benchmarks.bench) and the "
                       "repository's benchmarks/ pages",
+    "edge.depth.sine_halves": "the DST-I by even and odd halves was tried and retired (the repository's "
+                              "docs/benchmarks/dst_halves.md); the Poisson solve keeps the dense sine products "
+                              "(tactile_force.edge.depth.poisson)",
 }
 
 _ROOT = "tactile_force."
