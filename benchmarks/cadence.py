@@ -255,7 +255,7 @@ def goals_table(rds: list[Round], bench: dict[str, list]) -> str:
                            "met"], rows)
 
 
-#: Issue 43's goals for one sensor at the cadence: ms the runtime may add to the bare call, per percentile.
+#: The goals for one sensor at the cadence: ms the runtime may add to the bare call, per percentile.
 ADDED_GOALS = {50: 0.15, 99: 0.25}
 
 

@@ -13,7 +13,9 @@ PAGES = (
                         "(+ report.json, pareto.png)",
      "tactile-force bench --out docs/benchmarks/bench"),
     ("cadence.md", "Latency at the sensor's cadence (60 fps): one sensor and eight phase-shifted against a bare "
-                   "session at the same cadence, warm-ups off / on, where the cold time goes per stage, which parts "
+                   "session at the same cadence, warm-ups off / on, the floor under the runtime (each frame's one "
+                   "downscale then the bare call) against the ms it may add, where the cold time goes per stage, "
+                   "which parts "
                    "of the warm-up pay, the bench verdict of the default and the int8 RGBmod over several runs (+ "
                    "cadence.json)",
      "python -m benchmarks cadence --out docs/benchmarks"),
@@ -63,6 +65,8 @@ PAGES = (
                          "the previous default graph, the graph node by node, the under-1 ms check 10 times", ""),
     ("floors.md", "The least a gate and a runtime cost on this host against a bare session on the previous "
                   "default graph", ""),
+    ("dst_halves.md", "The depth stage's DST-I by its even and odd halves against the dense products: instructions "
+                      "per reading and how far the depth bundles' readings move", ""),
     ("int8_head.md", "int8: keeping the head's input in float", ""),
     ("distillation.md", "Distillation: students vs teacher vs labels", ""),
     ("distillation_small_student.md", "Distillation: a smaller student, more frames and epochs", ""),
